@@ -1,0 +1,67 @@
+"""Build the project's FMUs into dist/ and write the SSP systems that wire them.
+
+    python build.py [--dist DIR]
+
+Every FMU bundles the plain-Python core (plant/, estimators/) and the adapter package
+fmu_src/suspension_fmi/. Exits non-zero with the reason if a build fails.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent
+SRC = ROOT / "fmu_src"
+
+# model identifier -> packages it bundles besides the adapter package
+FMUS: dict[str, tuple[str, ...]] = {
+    "ISORoad": ("plant",),
+    "QuarterCar": ("plant",),
+    "SuspensionEstimator": ("plant", "estimators"),
+}
+
+
+def build(dist: Path, names: list[str] | None = None) -> list[Path]:
+    from pythonfmu.builder import FmuBuilder
+
+    dist.mkdir(parents=True, exist_ok=True)
+    built = []
+    for name, packages in FMUS.items():
+        if names and name not in names:
+            continue
+        script = SRC / f"{name}.py"
+        if not script.is_file():
+            print(f"skip {name}: {script.relative_to(ROOT)} does not exist yet")
+            continue
+        files = [SRC / "suspension_fmi", *(ROOT / p for p in packages)]
+        out = FmuBuilder.build_FMU(script, dest=dist, project_files=files,
+                                   needsExecutionTool="true", canHandleVariableCommunicationStepSize="true")
+        print(f"built {out.relative_to(ROOT) if out.is_relative_to(ROOT) else out}")
+        built.append(Path(out))
+    return built
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--dist", type=Path, default=ROOT / "dist", help="output folder (default dist/)")
+    ap.add_argument("names", nargs="*", help="model identifiers to build (default all)")
+    args = ap.parse_args(argv)
+    sys.path.insert(0, str(ROOT))
+    try:
+        build(args.dist, args.names)
+        try:
+            from harness.ssp import write_system_ssps
+        except ImportError:
+            write_system_ssps = None
+        if write_system_ssps is not None and not args.names:
+            for p in write_system_ssps(args.dist):
+                print(f"wrote {p.name}")
+    except Exception as e:  # noqa: BLE001 - one line for the user, non-zero exit
+        print(f"build failed: {type(e).__name__}: {e}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

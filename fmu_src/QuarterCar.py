@@ -1,0 +1,28 @@
+"""QuarterCar FMU: the linear quarter-car plant with seeded sensor noise."""
+from __future__ import annotations
+
+from plant.quarter_car import QuarterCar as Plant, SensorNoise
+from plant.vehicle import Vehicle
+from suspension_fmi.slave import ContractSlave
+
+
+class QuarterCar(ContractSlave):
+    description = "Quarter-car plant: sprung and unsprung mass on a suspension and a tyre, measured with noise"
+
+    def setup(self) -> None:
+        vehicle = Vehicle(m_s=self.sprung_mass, m_u=self.m_u, k_s=self.k_s, k_t=self.k_t, c_s=self.c_s)
+        noise = SensorNoise(self.acc_sprung_noise_std, self.acc_unsprung_noise_std, self.defl_noise_std)
+        self.plant = Plant(vehicle, noise, self.noise_seed, self.acc_sampling)
+        self._output()
+
+    def _output(self) -> None:
+        p = self.plant
+        self.z_s, self.v_s, self.z_u, self.v_u = (float(x) for x in p.x)
+        self.acc_sprung, self.acc_unsprung, self.susp_deflection = (float(x) for x in p.measured)
+        self.acc_sprung_true, self.acc_unsprung_true = (float(x) for x in p.acc_true)
+        self.tire_deflection = p.tire_deflection
+        self.tire_force = p.tire_force
+
+    def step(self, t: float, h: float) -> None:
+        self.plant.step(self.road_height, h, self.sprung_mass)
+        self._output()

@@ -1,0 +1,195 @@
+"""The variable contract of the three FMUs (see fmu-interface.md): one table per FMU.
+
+Every FMU class registers exactly these variables, the model description gets its units and
+descriptions from here, and the FMUs validate their parameters against ``allowed``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from plant import iso8608
+from plant.quarter_car import SensorNoise
+from plant.vehicle import DEFAULT_VEHICLE, VEHICLE_RANGES
+
+# unit name -> SI base-unit exponents, for <UnitDefinitions>
+UNITS: dict[str, dict[str, int]] = {
+    "m": {"m": 1},
+    "m/s": {"m": 1, "s": -1},
+    "m/s2": {"m": 1, "s": -2},
+    "kg": {"kg": 1},
+    "N": {"kg": 1, "m": 1, "s": -2},
+    "N/m": {"kg": 1, "s": -2},
+    "N.s/m": {"kg": 1, "s": -1},
+    "m3": {"m": 3},
+    "1/m": {"m": -1},
+    "s": {"s": 1},
+    "1": {},
+}
+
+
+@dataclass(frozen=True)
+class Var:
+    """One variable of the contract.
+
+    ``allowed`` is (low, high) for a closed range, (low, high, low_inclusive, high_inclusive), or
+    a dict {value: meaning} for a mode selector. Outputs have no start.
+    """
+
+    name: str
+    causality: str  # parameter | input | output
+    type: str  # Real | Integer | Boolean | String
+    unit: str | None
+    start: object
+    description: str
+    allowed: object = None
+
+
+def _real_param(name, unit, start, description, allowed):
+    return Var(name, "parameter", "Real", unit, float(start), description, allowed)
+
+
+NOISE = SensorNoise()
+V = DEFAULT_VEHICLE
+_STD = (0.0, 1e3)
+_SEED = (0, 2 ** 31 - 1)
+_CLASSES = {c: f"ISO 8608 class {iso8608.class_name(c)}" for c in range(1, 9)}
+_SPEED = (0.0, 100.0)
+
+
+def _vehicle_params(prefix: str) -> list[Var]:
+    return [
+        _real_param("m_u", "kg", V.m_u, f"unsprung mass {prefix}", VEHICLE_RANGES["m_u"]),
+        _real_param("k_s", "N/m", V.k_s, f"suspension stiffness (linear spring) {prefix}", VEHICLE_RANGES["k_s"]),
+        _real_param("k_t", "N/m", V.k_t, f"tyre stiffness {prefix}", VEHICLE_RANGES["k_t"]),
+        _real_param("c_s", "N.s/m", V.c_s, f"suspension damping (linear damper) {prefix}", VEHICLE_RANGES["c_s"]),
+    ]
+
+
+ISO_ROAD: tuple[Var, ...] = (
+    Var("road_class", "parameter", "Integer", None, 3,
+        "ISO 8608 class 1..8 = A..H; sets Gd(n0) = 16e-6*4^(class-1) m3", _CLASSES),
+    _real_param("psd_n0", "m3", 0.0, "if > 0, Gd(n0) used instead of the class value", (0.0, 1.0)),
+    _real_param("waviness", "1", iso8608.WAVINESS, "PSD exponent w in Gd(n) = Gd(n0)*(n/n0)^-w, n0 = 0.1 cycle/m",
+                (0.0, 5.0)),
+    _real_param("n_min", "1/m", iso8608.N_MIN, "lowest spatial frequency of the generated profile", (1e-4, 10.0)),
+    _real_param("n_max", "1/m", iso8608.N_MAX, "highest spatial frequency of the generated profile", (1e-4, 10.0)),
+    Var("seed", "parameter", "Integer", None, 1, "random seed of the profile: same seed, same road, at any speed",
+        _SEED),
+    Var("profile_file", "parameter", "String", None, "",
+        "optional measured profile (columns distance m, elevation m; CSV or whitespace); replaces the synthetic one"),
+    Var("vehicle_speed", "input", "Real", "m/s", 11.1111, "forward speed (held over the step)", _SPEED),
+    Var("road_height", "output", "Real", "m", None, "elevation under the tyre at the travelled distance"),
+    Var("road_velocity", "output", "Real", "m/s", None, "time derivative of road_height"),
+    Var("distance", "output", "Real", "m", None, "distance travelled"),
+)
+
+QUARTER_CAR: tuple[Var, ...] = (
+    *_vehicle_params("of the plant"),
+    Var("spring_model", "parameter", "Integer", None, 0, "0 = linear spring (1 = air spring: not available yet)",
+        {0: "linear"}),
+    Var("damper_model", "parameter", "Integer", None, 0,
+        "0 = linear damper (1 = asymmetric piecewise: not available yet)", {0: "linear"}),
+    _real_param("acc_sprung_noise_std", "m/s2", NOISE.acc_sprung,
+                "std of white noise on the measured sprung-mass acceleration", _STD),
+    _real_param("acc_unsprung_noise_std", "m/s2", NOISE.acc_unsprung,
+                "std of white noise on the measured unsprung-mass acceleration", _STD),
+    _real_param("defl_noise_std", "m", NOISE.deflection, "std of white noise on the measured deflection", (0.0, 1.0)),
+    Var("noise_seed", "parameter", "Integer", None, 1, "seed of the sensor noise", _SEED),
+    Var("acc_sampling", "parameter", "Integer", None, 0,
+        "0 = accelerations sampled at the end of the step; 1 = averaged over the step (anti-alias filtered sensor)",
+        {0: "end of step", 1: "average over the step"}),
+    Var("road_height", "input", "Real", "m", 0.0, "road elevation under the tyre (held over the step)", (-1e3, 1e3)),
+    Var("sprung_mass", "input", "Real", "kg", V.m_s, "sprung mass; may change during a run (payload)",
+        VEHICLE_RANGES["m_s"]),
+    Var("acc_sprung", "output", "Real", "m/s2", None, "measured sprung-mass acceleration (with noise)"),
+    Var("acc_unsprung", "output", "Real", "m/s2", None, "measured unsprung-mass acceleration (with noise)"),
+    Var("susp_deflection", "output", "Real", "m", None, "measured suspension deflection z_s - z_u (with noise)"),
+    Var("acc_sprung_true", "output", "Real", "m/s2", None, "noise-free sprung-mass acceleration"),
+    Var("acc_unsprung_true", "output", "Real", "m/s2", None, "noise-free unsprung-mass acceleration"),
+    Var("z_s", "output", "Real", "m", None, "true sprung-mass displacement from static equilibrium"),
+    Var("v_s", "output", "Real", "m/s", None, "true sprung-mass velocity"),
+    Var("z_u", "output", "Real", "m", None, "true unsprung-mass displacement from static equilibrium"),
+    Var("v_u", "output", "Real", "m/s", None, "true unsprung-mass velocity"),
+    Var("tire_deflection", "output", "Real", "m", None, "z_u - road_height"),
+    Var("tire_force", "output", "Real", "N", None, "dynamic tyre force k_t*(road_height - z_u)"),
+)
+
+SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
+    _real_param("m_s_nominal", "kg", V.m_s, "sprung mass the model assumes at start", VEHICLE_RANGES["m_s"]),
+    *_vehicle_params("the model assumes"),
+    Var("road_estimator", "parameter", "Integer", None, 0,
+        "0 = Kalman filter, 1 = MME&KF (minimum model error + KF)", {0: "Kalman filter", 1: "MME&KF"}),
+    Var("mass_estimator", "parameter", "Integer", None, 1,
+        "0 = off (mass stays nominal), 1 = forgetting-factor RLS on the suspension force balance",
+        {0: "off", 1: "forgetting-factor RLS"}),
+    Var("mass_feedback", "parameter", "Boolean", None, True,
+        "re-build the road estimator's model at the estimated sprung mass (joint road + mass estimation)"),
+    _real_param("forgetting_factor", "1", 0.995, "RLS forgetting factor lambda, 0.9 < lambda <= 1",
+                (0.9, 1.0, False, True)),
+    Var("road_class", "parameter", "Integer", None, 0,
+        "0 = identify the ISO class online and schedule Q/R from it; 1..8 = assume that class (A..H)",
+        {0: "identify online", **_CLASSES}),
+    _real_param("acc_sprung_noise_std", "m/s2", NOISE.acc_sprung,
+                "sprung-mass accelerometer noise the filters assume (sets R)", (0.0, 1e3, False, True)),
+    _real_param("acc_unsprung_noise_std", "m/s2", NOISE.acc_unsprung,
+                "unsprung-mass accelerometer noise the filters assume (sets R)", (0.0, 1e3, False, True)),
+    _real_param("defl_noise_std", "m", NOISE.deflection, "deflection-sensor noise the filters assume (sets R)",
+                (0.0, 1.0, False, True)),
+    Var("acc_sprung", "input", "Real", "m/s2", 0.0, "measured sprung-mass acceleration"),
+    Var("acc_unsprung", "input", "Real", "m/s2", 0.0, "measured unsprung-mass acceleration"),
+    Var("susp_deflection", "input", "Real", "m", 0.0, "measured suspension deflection z_s - z_u"),
+    Var("vehicle_speed", "input", "Real", "m/s", 11.1111, "forward speed", _SPEED),
+    Var("road_height_est", "output", "Real", "m", None, "estimated road elevation"),
+    Var("road_velocity_est", "output", "Real", "m/s", None, "estimated time derivative of the road elevation"),
+    Var("road_height_std", "output", "Real", "m", None, "1-sigma uncertainty of road_height_est from the filter covariance"),
+    Var("z_s_est", "output", "Real", "m", None, "estimated sprung-mass displacement"),
+    Var("v_s_est", "output", "Real", "m/s", None, "estimated sprung-mass velocity"),
+    Var("z_u_est", "output", "Real", "m", None, "estimated unsprung-mass displacement"),
+    Var("v_u_est", "output", "Real", "m/s", None, "estimated unsprung-mass velocity"),
+    Var("susp_deflection_est", "output", "Real", "m", None, "estimated suspension deflection z_s - z_u"),
+    Var("tire_deflection_est", "output", "Real", "m", None, "estimated tyre deflection z_u - z_r"),
+    Var("sprung_mass_est", "output", "Real", "kg", None, "estimated sprung mass"),
+    Var("road_class_est", "output", "Integer", None, None,
+        "ISO 8608 class identified online (1..8 = A..H), 0 until enough road has been seen"),
+    Var("nis", "output", "Real", "1", None, "normalised innovation squared of the last update (filter health)"),
+    Var("status", "output", "Integer", None, None,
+        "0 = ok, 1 = last measurement rejected (non-finite or outlier), 2 = filter re-initialised"),
+)
+
+CONTRACTS: dict[str, tuple[Var, ...]] = {
+    "ISORoad": ISO_ROAD,
+    "QuarterCar": QUARTER_CAR,
+    "SuspensionEstimator": SUSPENSION_ESTIMATOR,
+}
+
+
+def allowed_text(var: Var) -> str:
+    a = var.allowed
+    if isinstance(a, dict):
+        return "{" + ", ".join(f"{k} = {v}" for k, v in a.items()) + "}"
+    low, high, *incl = a
+    lo_in, hi_in = (incl + [True, True])[:2]
+    return f"{'[' if lo_in else '('}{low:g}, {high:g}{']' if hi_in else ')'}"
+
+
+def problem(var: Var, value: object) -> str | None:
+    """A message naming the variable and its allowed range if ``value`` is not allowed."""
+    a = var.allowed
+    if a is None:
+        return None
+    if isinstance(a, dict):
+        ok = value in a
+    else:
+        low, high, *incl = a
+        lo_in, hi_in = (incl + [True, True])[:2]
+        try:
+            v = float(value)
+        except (TypeError, ValueError):
+            v = float("nan")
+        ok = v == v and (v >= low if lo_in else v > low) and (v <= high if hi_in else v < high)
+    if ok:
+        return None
+    if isinstance(value, float) and not math.isfinite(value):
+        return f"{var.name} = {value!r} is not a finite number (allowed range {allowed_text(var)})"
+    return f"{var.name} = {value!r} is outside the allowed range {allowed_text(var)}"

@@ -1,0 +1,131 @@
+"""Base class of the project's FMUs: registers the contract, declares units, refuses bad input.
+
+pythonfmu turns an exception into fmi2Fatal and cannot return fmi2Error, so nothing here
+raises to the host: a bad parameter is logged (error status, naming the variable and its
+allowed range) when initialization ends, and every ``doStep`` afterwards returns fmi2Discard
+with the reason logged again; a bad input is refused the same way at the step.
+"""
+from __future__ import annotations
+
+import math
+import uuid
+from xml.etree.ElementTree import Element, SubElement, tostring
+
+from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
+from pythonfmu.enums import Fmi2Status
+
+from .contract import CONTRACTS, UNITS, Var, problem
+
+_TYPES = {"Real": Real, "Integer": Integer, "Boolean": Boolean, "String": String}
+_ZERO = {"Real": 0.0, "Integer": 0, "Boolean": False, "String": ""}
+
+
+class ContractSlave(Fmi2Slave):
+    """Registers the variables of ``CONTRACTS[model identifier]`` as attributes of the same name.
+
+    Subclasses implement ``setup()`` (build the core from the parameters; raise ValueError with
+    a message naming the variable for a problem the contract's ranges cannot express) and
+    ``step(t, h)`` (advance the core, write the outputs).
+    """
+
+    author = "suspension-estimation FMU project"
+    license = "MIT"
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.contract: tuple[Var, ...] = CONTRACTS[type(self).__name__]
+        self._refusal: str | None = None
+        self._checked_inputs: list[Var] = []
+        for var in self.contract:
+            setattr(self, var.name, _ZERO[var.type] if var.start is None else var.start)
+            if var.causality == "parameter":
+                variability = Fmi2Variability.fixed
+            elif var.type == "Real":
+                variability = Fmi2Variability.continuous
+            else:
+                variability = Fmi2Variability.discrete
+            self.register_variable(_TYPES[var.type](
+                var.name, causality=getattr(Fmi2Causality, var.causality), variability=variability,
+                description=var.description, start=var.start))
+            if var.causality == "input" and var.type == "Real" and var.allowed is not None:
+                self._checked_inputs.append(var)
+
+    # -- hooks for subclasses ---------------------------------------------------------------
+    def setup(self) -> None:
+        """Build the core from the parameters."""
+
+    def step(self, t: float, h: float) -> None:
+        """Advance the core by h seconds and write the outputs."""
+        raise NotImplementedError
+
+    def input_problems(self) -> list[str]:
+        """Messages for inputs outside their ranges (non-finite included)."""
+        out = []
+        for var in self._checked_inputs:
+            value = getattr(self, var.name)
+            if (msg := problem(var, value)) is not None:
+                out.append(msg)
+        return out
+
+    # -- FMI --------------------------------------------------------------------------------
+    def exit_initialization_mode(self):
+        problems = [msg for var in self.contract if var.causality == "parameter"
+                    and (msg := problem(var, getattr(self, var.name))) is not None]
+        problems += self.input_problems()
+        if not problems:
+            try:
+                self.setup()
+            except Exception as e:  # noqa: BLE001 - reported to the host, never raised into it
+                problems.append(str(e) or type(e).__name__)
+        if problems:
+            self._refusal = "; ".join(problems)
+            self.log(f"{type(self).__name__} refuses its parameters: {self._refusal}", Fmi2Status.error)
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        if self._refusal is not None:
+            self.log(f"{type(self).__name__} cannot step: {self._refusal}", Fmi2Status.error)
+            return False
+        if not (step_size > 0 and math.isfinite(step_size)):
+            self.log(f"communication step size = {step_size!r} must be > 0", Fmi2Status.error)
+            return False
+        problems = self.input_problems()
+        if problems:
+            self.log(f"{type(self).__name__} at t = {current_time:.6g} s refuses its inputs: "
+                     + "; ".join(problems), Fmi2Status.error)
+            return False
+        try:
+            self.step(current_time, step_size)
+        except Exception as e:  # noqa: BLE001
+            self.log(f"{type(self).__name__} at t = {current_time:.6g} s: {e}", Fmi2Status.error)
+            return False
+        return True
+
+    # -- model description ------------------------------------------------------------------
+    def to_xml(self, model_options=dict()) -> Element:
+        """pythonfmu's description plus units, UnitDefinitions, InitialUnknowns, a content GUID."""
+        root = super().to_xml(model_options)
+        by_name = {v.name: v for v in self.contract}
+        used = []
+        for sv in root.find("ModelVariables"):
+            var = by_name[sv.get("name")]
+            if var.unit is not None:
+                sv.find("Real").set("unit", var.unit)
+                used.append(var.unit)
+        units = Element("UnitDefinitions")
+        for name in dict.fromkeys(used):
+            SubElement(SubElement(units, "Unit", name=name), "BaseUnit",
+                       {k: str(e) for k, e in UNITS[name].items()})
+        root.insert(list(root).index(root.find("CoSimulation")) + 1, units)
+        structure = root.find("ModelStructure")
+        outputs = structure.find("Outputs")
+        if outputs is not None:
+            initial = SubElement(structure, "InitialUnknowns")
+            for unknown in outputs:
+                SubElement(initial, "Unknown", index=unknown.get("index"))
+        # The GUID follows the content, so an unchanged model rebuilds with the same GUID.
+        root.set("guid", "")
+        root.set("generationDateAndTime", "")
+        content = tostring(root)
+        root.set("guid", "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, content.decode())) + "}")
+        del root.attrib["generationDateAndTime"]
+        return root

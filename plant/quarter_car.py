@@ -1,0 +1,107 @@
+"""Linear quarter-car plant, advanced exactly over each step with the road held.
+
+Equations of motion (displacements upwards from static equilibrium):
+
+    m_s * a_s = -k_s (z_s - z_u) - c_s (v_s - v_u)
+    m_u * a_u =  k_s (z_s - z_u) + c_s (v_s - v_u) - k_t (z_u - z_r)
+
+State x = [z_s, v_s, z_u, v_u] (m, m/s), input the road height z_r (m). Over a step of length
+h the road is held (zero-order hold) and the state advances with the exact discretisation
+[Ad Bd; 0 1] = expm([A B; 0 0] h). Gravity is balanced by the static preload: when the sprung
+mass changes the suspension is assumed levelled, so the equilibrium does not move.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import expm
+
+from .vehicle import Vehicle
+
+
+def state_matrices(v: Vehicle) -> tuple[np.ndarray, np.ndarray]:
+    """Continuous A (4x4) and B (4,) with x' = A x + B z_r."""
+    A = np.array([
+        [0.0, 1.0, 0.0, 0.0],
+        [-v.k_s / v.m_s, -v.c_s / v.m_s, v.k_s / v.m_s, v.c_s / v.m_s],
+        [0.0, 0.0, 0.0, 1.0],
+        [v.k_s / v.m_u, v.c_s / v.m_u, -(v.k_s + v.k_t) / v.m_u, -v.c_s / v.m_u],
+    ])
+    B = np.array([0.0, 0.0, 0.0, v.k_t / v.m_u])
+    return A, B
+
+
+def discretise(A: np.ndarray, B: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact zero-order-hold discretisation: x[k+1] = Ad x[k] + Bd u[k]."""
+    n = A.shape[0]
+    M = np.zeros((n + 1, n + 1))
+    M[:n, :n] = A
+    M[:n, n] = B
+    E = expm(M * h)
+    return E[:n, :n], E[:n, n]
+
+
+@dataclass(frozen=True)
+class SensorNoise:
+    """White-noise standard deviations of the three measurements."""
+
+    acc_sprung: float = 0.02  # m/s^2
+    acc_unsprung: float = 0.2  # m/s^2
+    deflection: float = 1e-4  # m
+
+
+class QuarterCar:
+    """The plant: true states, true and measured outputs.
+
+    ``acc_sampling`` 0 reports the accelerations at the end of the step; 1 reports their
+    average over the step, (v[k+1] - v[k]) / h, which is exact for the held road and is what
+    an accelerometer behind an anti-alias filter integrating over the sample gives.
+    """
+
+    def __init__(self, vehicle: Vehicle, noise: SensorNoise = SensorNoise(), noise_seed: int = 1,
+                 acc_sampling: int = 0):
+        self.vehicle = vehicle
+        self.noise = noise
+        self.acc_sampling = int(acc_sampling)
+        self.rng = np.random.default_rng(noise_seed)
+        self.x = np.zeros(4)
+        self.road = 0.0
+        self.acc_true = np.zeros(2)  # sprung, unsprung
+        self.measured = np.zeros(3)  # acc_sprung, acc_unsprung, deflection
+        self._key: tuple[float, float] | None = None
+        self._A = self._B = self._Ad = self._Bd = None
+
+    def _matrices(self, m_s: float, h: float) -> None:
+        if self._key != (m_s, h):
+            self._A, self._B = state_matrices(self.vehicle.with_(m_s=m_s))
+            self._Ad, self._Bd = discretise(self._A, self._B, h)
+            self._key = (m_s, h)
+
+    def step(self, road_height: float, h: float, m_s: float | None = None) -> None:
+        """Advance by h seconds with the road held at ``road_height`` (m)."""
+        self._matrices(self.vehicle.m_s if m_s is None else m_s, h)
+        x0 = self.x
+        self.x = self._Ad @ x0 + self._Bd * road_height
+        self.road = road_height
+        if self.acc_sampling == 1:
+            self.acc_true = np.array([self.x[1] - x0[1], self.x[3] - x0[3]]) / h
+        else:
+            xdot = self._A @ self.x + self._B * road_height
+            self.acc_true = np.array([xdot[1], xdot[3]])
+        n = self.noise
+        e = self.rng.standard_normal(3)
+        self.measured = np.array([
+            self.acc_true[0] + n.acc_sprung * e[0],
+            self.acc_true[1] + n.acc_unsprung * e[1],
+            self.x[0] - self.x[2] + n.deflection * e[2],
+        ])
+
+    @property
+    def tire_deflection(self) -> float:
+        return float(self.x[2] - self.road)
+
+    @property
+    def tire_force(self) -> float:
+        """Dynamic tyre force k_t (z_r - z_u) in N (positive pushes the wheel up)."""
+        return float(self.vehicle.k_t * (self.road - self.x[2]))
