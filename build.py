@@ -25,6 +25,9 @@ FMUS: dict[str, tuple[str, ...]] = {
 def build(dist: Path, names: list[str] | None = None) -> list[Path]:
     from pythonfmu.builder import FmuBuilder
 
+    unknown = sorted(set(names or ()) - set(FMUS))
+    if unknown:
+        raise ValueError(f"unknown FMU name(s) {', '.join(unknown)}; known: {', '.join(FMUS)}")
     dist.mkdir(parents=True, exist_ok=True)
     built = []
     for name, packages in FMUS.items():

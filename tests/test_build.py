@@ -1,0 +1,147 @@
+"""build.py and the model descriptions: validation, the written contract, units, rebuilds, names."""
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fmpy import read_model_description
+from fmpy.validation import validate_fmu
+
+from conftest import ROOT, SHARED
+from fmu_driver import Driven
+
+NAMES = ["ISORoad", "QuarterCar", "SuspensionEstimator"]
+
+
+def built(dist: Path) -> list[str]:
+    return [n for n in NAMES if (dist / f"{n}.fmu").is_file()]
+
+
+def test_road_and_plant_are_built(dist):
+    assert {"ISORoad", "QuarterCar"} <= set(built(dist))
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_fmpy_validate_finds_no_problem(dist, name):
+    if name not in built(dist):
+        pytest.skip(f"{name}.fmu is not part of this build")
+    assert validate_fmu(str(dist / f"{name}.fmu")) == []
+
+
+def contract_rows(md_text: str) -> dict[str, dict[str, dict]]:
+    """{model identifier: {variable: {causality, type, unit, start}}} from fmu-interface.md."""
+    out: dict[str, dict[str, dict]] = {}
+    current = None
+    for line in md_text.splitlines():
+        if m := re.match(r"## `(\w+)\.fmu`", line):
+            current = out.setdefault(m.group(1), {})
+            continue
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if current is None or len(cells) != 6 or not cells[0].startswith("`"):
+            continue
+        names = re.findall(r"`(\w+)`", cells[0])
+        units = [u.strip() for u in cells[3].split(",")]
+        starts = [s.strip() for s in cells[4].split(",")] if cells[4] else []
+        for i, name in enumerate(names):
+            current[name] = {
+                "causality": cells[1], "type": cells[2],
+                "unit": units[i] if len(units) == len(names) else (units[0] if len(units) == 1 else None),
+                "start": starts[i] if len(starts) == len(names) else (starts[0] if len(starts) == 1 else None),
+            }
+    return out
+
+
+def test_contract_document_is_found():
+    rows = contract_rows((SHARED / "fmu-interface.md").read_text())
+    assert set(rows) == set(NAMES) and all(len(v) > 8 for v in rows.values())
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_model_description_follows_the_written_contract(dist, name):
+    if name not in built(dist):
+        pytest.skip(f"{name}.fmu is not part of this build")
+    rows = contract_rows((SHARED / "fmu-interface.md").read_text())[name]
+    md = read_model_description(str(dist / f"{name}.fmu"))
+    assert md.coSimulation.modelIdentifier == name
+    variables = {v.name: v for v in md.modelVariables}
+    units = {u.name for u in md.unitDefinitions}
+    for var in md.modelVariables:
+        assert var.description, f"{var.name} has no description"
+        if var.type == "Real":
+            assert var.unit and var.unit in units, f"{var.name} has no declared unit"
+    for vname, row in rows.items():
+        assert vname in variables, f"{name}.{vname} is missing"
+        var = variables[vname]
+        assert var.causality == row["causality"], vname
+        assert var.type == row["type"], vname
+        if row["unit"] not in (None, "–", "-"):
+            assert var.unit == row["unit"], vname
+        if var.causality == "parameter":
+            assert var.variability in ("fixed", "tunable"), vname
+        start = row["start"]
+        if start not in (None, ""):
+            if var.type == "Real":
+                assert float(var.start) == pytest.approx(float(start)), vname
+            elif var.type == "Integer":
+                assert int(var.start) == int(start), vname
+            elif var.type == "Boolean":
+                assert str(var.start).lower() == start, vname
+            else:
+                assert (var.start or "") == start.strip('"'), vname
+
+
+def test_rebuild_is_idempotent(dist, tmp_path):
+    for _ in range(2):
+        proc = subprocess.run([sys.executable, str(ROOT / "build.py"), "--dist", str(tmp_path), "ISORoad"],
+                              capture_output=True, text=True)
+        assert proc.returncode == 0, proc.stderr
+    with zipfile.ZipFile(tmp_path / "ISORoad.fmu") as a, zipfile.ZipFile(dist / "ISORoad.fmu") as b:
+        assert a.read("modelDescription.xml") == b.read("modelDescription.xml")
+        assert sorted(a.namelist()) == sorted(b.namelist())
+
+
+def test_failing_build_exits_non_zero_with_the_reason(tmp_path):
+    proc = subprocess.run([sys.executable, str(ROOT / "build.py"), "--dist", str(tmp_path), "NoSuchFMU"],
+                          capture_output=True, text=True)
+    assert proc.returncode != 0
+    assert "NoSuchFMU" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+    blocked = tmp_path / "file"
+    blocked.write_text("")
+    proc = subprocess.run([sys.executable, str(ROOT / "build.py"), "--dist", str(blocked / "sub")],
+                          capture_output=True, text=True)
+    assert proc.returncode != 0 and "build failed" in proc.stderr
+
+
+def test_scripts_are_unique_and_shared_packages_identical(dist):
+    modules, packages = {}, {}
+    for name in built(dist):
+        with zipfile.ZipFile(dist / f"{name}.fmu") as z:
+            modules[name] = z.read("resources/slavemodule.txt").decode().strip()
+            for info in z.infolist():
+                parts = Path(info.filename).parts
+                if len(parts) > 2 and parts[0] == "resources" and info.filename.endswith(".py"):
+                    packages.setdefault(info.filename, set()).add(z.read(info.filename))
+    assert len(set(modules.values())) == len(modules)
+    # a package bundled by several FMUs is the same code in each, so one module cache serves all
+    assert all(len(versions) == 1 for versions in packages.values())
+    assert any(f.startswith("resources/suspension_fmi/") for f in packages)
+
+
+def test_all_fmus_in_one_process_and_two_instances_stay_independent(dist):
+    a = Driven(dist / "ISORoad.fmu", {"road_class": 2, "seed": 1}, name="a")
+    b = Driven(dist / "ISORoad.fmu", {"road_class": 6, "seed": 1}, name="b")
+    p = Driven(dist / "QuarterCar.fmu", {}, name="p")
+    try:
+        ya = a.run(0.001, 500, ["road_height"], vehicle_speed=10.0)
+        yb = b.run(0.001, 500, ["road_height"], vehicle_speed=10.0)
+        yp = p.run(0.001, 500, ["z_s"], road_height=0.01)
+        assert np.allclose(yb, 16.0 * ya)  # same seed, Gd(n0) 256x larger: amplitude 16x
+        assert yp[-1, 0] > 0.005
+    finally:
+        for d in (a, b, p):
+            d.close()
