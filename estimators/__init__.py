@@ -1,0 +1,11 @@
+"""Plain-Python estimator cores of the SuspensionEstimator FMU (no FMI import).
+
+- ``model``: 6-state augmented quarter car + ISO 8608 road shaping filter, exact discretisation
+- ``kalman``: Kalman filter (filterpy-identical) and MME&KF
+- ``mass``: forgetting-factor RLS sprung-mass estimation on a mass-independent regressor
+- ``road_class``: online ISO 8608 class from the PSD of the estimated road
+- ``suspension``: ``SuspensionEstimator``, the object the FMU adapter drives
+"""
+from .suspension import OUTPUTS, EstimatorConfig, SuspensionEstimator, validate
+
+__all__ = ["OUTPUTS", "EstimatorConfig", "SuspensionEstimator", "validate"]

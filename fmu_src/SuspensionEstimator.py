@@ -1,0 +1,28 @@
+"""SuspensionEstimator FMU: road profile (KF or MME&KF), sprung mass (RLS) and ISO class online."""
+from __future__ import annotations
+
+from estimators.suspension import EstimatorConfig, SuspensionEstimator as Core
+from suspension_fmi.slave import ContractSlave
+
+# contract parameters that configure the core under the same name
+_CONFIG = ("m_s_nominal", "m_u", "k_s", "k_t", "c_s", "road_estimator", "mass_estimator", "mass_feedback",
+           "forgetting_factor", "road_class", "acc_sprung_noise_std", "acc_unsprung_noise_std", "defl_noise_std")
+
+
+class SuspensionEstimator(ContractSlave):
+    description = ("Road-profile (KF, MME&KF), sprung-mass (forgetting-factor RLS) and ISO 8608 class "
+                   "estimation from body and wheel accelerations and suspension deflection")
+
+    def setup(self) -> None:
+        config = EstimatorConfig(**{name: getattr(self, name) for name in _CONFIG})
+        problems = config.problems()
+        if problems:
+            raise ValueError("; ".join(problems))
+        self.core = Core(config)
+        self.sprung_mass_est = float(self.m_s_nominal)
+
+    def step(self, t: float, h: float) -> None:
+        # the measurements have no range in the contract: the core rejects non-finite ones (status 1)
+        out = self.core.step(self.acc_sprung, self.acc_unsprung, self.susp_deflection, self.vehicle_speed, h)
+        for name, value in out.items():
+            setattr(self, name, value)

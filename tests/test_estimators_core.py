@@ -1,0 +1,261 @@
+"""Plain-core tests of estimators/ and harness/metrics.py (no FMU). Loose, seed-robust bounds."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.linalg import expm
+from scipy.signal import welch
+
+from estimators import EstimatorConfig, SuspensionEstimator, validate
+from estimators.kalman import LinearKF
+from estimators.mass import ForgettingRLS, MassEstimator
+from estimators.model import (DiscreteModel, RoadModel, discretise, noise_intensity, output_matrix,
+                              road_intensity, state_matrix)
+from estimators.road_class import grade_index_from_profile, welch_psd
+from harness.metrics import road_scores, settling_time
+from plant import iso8608
+from plant.quarter_car import QuarterCar, SensorNoise, state_matrices
+from plant.road import SyntheticRoad
+from plant.vehicle import DEFAULT_VEHICLE, PAPER001_VEHICLE
+
+
+def simulate(road_class=3, speed=40 / 3.6, T=12.0, h=1e-3, seed=1, vehicle=DEFAULT_VEHICLE, mass=None,
+             noise=SensorNoise()):
+    road = SyntheticRoad(iso8608.class_psd_n0(road_class), seed=seed)
+    car = QuarterCar(vehicle, noise, noise_seed=100 + seed)
+    n = int(round(T / h))
+    meas, truth, ms = np.empty((n, 3)), np.empty((n, 5)), np.empty(n)
+    for k in range(n):
+        m = vehicle.m_s if mass is None else (mass(k * h) if callable(mass) else mass)
+        car.step(road.height(speed * k * h), h, m)
+        meas[k], truth[k, :4], truth[k, 4], ms[k] = car.measured, car.x, car.road, m
+    return np.arange(1, n + 1) * h, meas, truth, ms
+
+
+def run(meas, speed=40 / 3.6, h=1e-3, **kw):
+    est = SuspensionEstimator(**kw)
+    keys = ("road_height_est", "road_height_std", "sprung_mass_est", "road_class_est", "status")
+    out = {k: np.empty(len(meas)) for k in keys}
+    for k, z in enumerate(meas):
+        o = est.step(z[0], z[1], z[2], speed, h)
+        for key in keys:
+            out[key][k] = o[key]
+    return est, out
+
+
+# --- model -----------------------------------------------------------------------------------
+@pytest.mark.parametrize("vehicle", [DEFAULT_VEHICLE, PAPER001_VEHICLE])
+def test_model_matches_plant_equations(vehicle):
+    A = state_matrix(vehicle, 11.0)
+    A4, B4 = state_matrices(vehicle)
+    np.testing.assert_allclose(A[:4, :4], A4, rtol=1e-14)
+    np.testing.assert_allclose(A[:4, 4], B4, rtol=1e-14)
+    assert A[1, 0] == pytest.approx(-vehicle.k_s / vehicle.m_s)  # the paper's sign slip, corrected
+    # outputs reproduce the plant's noise-free accelerations and deflection from its true state
+    car = QuarterCar(vehicle, SensorNoise(0.0, 0.0, 0.0))
+    road = SyntheticRoad(iso8608.class_psd_n0(4), seed=3)
+    H = output_matrix(vehicle)
+    for k in range(500):
+        car.step(road.height(11.0 * k * 1e-3), 1e-3)
+        x = np.r_[car.x, car.road, 0.0]
+        np.testing.assert_allclose(H @ x, car.measured, atol=1e-9)
+
+
+def test_exact_discretisation_and_van_loan():
+    A = state_matrix(DEFAULT_VEHICLE, 20.0)
+    Qc = noise_intensity(iso8608.class_psd_n0(3), 20.0)
+    h = 2e-3
+    Phi, Qd = discretise(A, Qc, h)
+    np.testing.assert_allclose(Phi, expm(A * h), rtol=1e-12, atol=1e-14)
+    # Q_d = int_0^h e^{As} Qc e^{A's} ds by a fine midpoint rule
+    s = (np.arange(2000) + 0.5) * h / 2000
+    ref = sum(expm(A * si) @ Qc @ expm(A * si).T for si in s) * h / 2000
+    np.testing.assert_allclose(Qd, ref, rtol=1e-5, atol=1e-18)
+
+
+def test_road_model_level_follows_iso():
+    # low-frequency v_r PSD 2 q / a2^2 equals the ISO road-velocity PSD 4 pi^2 n0^2 Gd V
+    for cls, v in ((1, 10.0), (3, 11.1), (5, 30.0)):
+        gd = iso8608.class_psd_n0(cls)
+        a2 = 2 * np.pi * RoadModel().n_hi * v
+        assert 2 * road_intensity(gd, v) / a2 ** 2 == pytest.approx(4 * np.pi ** 2 * iso8608.N0 ** 2 * gd * v)
+
+
+def test_step_change_rediscretises():
+    est = SuspensionEstimator(mass_estimator=0)
+    est.step(0.0, 0.0, 0.0, 10.0, 1e-3)
+    assert est.model.h == 1e-3
+    est.step(0.0, 0.0, 0.0, 10.0, 5e-3)
+    assert est.model.h == 5e-3
+    np.testing.assert_allclose(est.kf.F, expm(est.model.A * 5e-3), rtol=1e-12, atol=1e-14)
+
+
+# --- Kalman filter ---------------------------------------------------------------------------
+def test_linear_kf_equals_filterpy():
+    from filterpy.kalman import KalmanFilter
+
+    m = DiscreteModel.build(DEFAULT_VEHICLE, 11.1, iso8608.class_psd_n0(3), 1e-3)
+    R = np.diag([0.02, 0.2, 1e-4]) ** 2
+    fp = KalmanFilter(6, 3)
+    fp.F, fp.Q, fp.H, fp.R = m.Phi, m.Q, m.H, R
+    fp.x = np.zeros(6)
+    fp.P = np.eye(6) * 1e-4
+    kf = LinearKF(6, 3)
+    kf.F, kf.Q, kf.H, kf.R = m.Phi, m.Q, m.H, R
+    kf.P = np.eye(6) * 1e-4
+    _, meas, _, _ = simulate(T=2.0)
+    for z in meas:
+        fp.predict()
+        fp.update(z)
+        kf.predict()
+        kf.update(z)
+        np.testing.assert_allclose(kf.x, fp.x, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(kf.P, fp.P, rtol=1e-9, atol=1e-18)
+
+
+def test_frozen_gain_identical_to_full_filter():
+    # an observable, stable system whose Riccati recursion converges: the 4-state quarter car
+    A4, B4 = state_matrices(DEFAULT_VEHICLE)
+    Phi, Q = discretise(A4, np.outer(B4, B4) * 1e-6, 1e-3)
+    H = output_matrix(DEFAULT_VEHICLE)[:, :4]
+    R = np.diag([0.02, 0.2, 1e-4]) ** 2
+    rng = np.random.default_rng(0)
+    full, fast = LinearKF(4, 3), LinearKF(4, 3, freeze_tol=1e-13, freeze_steps=20)
+    for f in (full, fast):
+        f.F, f.Q, f.H, f.R = Phi, Q, H, R
+    for _ in range(20000):
+        z = rng.standard_normal(3) * [0.1, 1.0, 1e-3]
+        for f in (full, fast):
+            f.predict()
+            f.update(z)
+    assert fast.frozen
+    np.testing.assert_allclose(fast.x, full.x, rtol=0, atol=1e-9)
+
+
+# --- mass --------------------------------------------------------------------------------------
+def test_rls_converges_on_exact_regression():
+    rng = np.random.default_rng(1)
+    theta = np.array([450.0, 1300.0])
+    rls = ForgettingRLS(np.array([260.0, 1000.0]), np.eye(2) * 1e6, lam=0.995)
+    for _ in range(3000):
+        phi = rng.standard_normal(2)
+        rls.update(phi, float(phi @ theta))
+    np.testing.assert_allclose(rls.theta, theta, rtol=1e-6)
+
+
+def test_mass_estimator_regressor_independent_of_nominal_mass():
+    _, meas, _, _ = simulate(T=4.0, mass=560.0, seed=2)
+    for nominal in (250.0, 410.0, 700.0):
+        me = MassEstimator(nominal, DEFAULT_VEHICLE.k_s, DEFAULT_VEHICLE.c_s, lam=0.995)
+        for z in meas:
+            me.update(z[0], z[2], 1e-3)
+        assert me.mass == pytest.approx(560.0, rel=0.03)
+
+
+def test_mass_step_tracked():
+    mass = lambda t: 260.0 if t < 1.5 else 450.0  # noqa: E731
+    t, meas, _, _ = simulate(T=3.5, vehicle=PAPER001_VEHICLE, mass=mass, seed=3)
+    _, out = run(meas, m_s_nominal=260.0, m_u=40.0, k_s=16000.0, c_s=1200.0, road_class=3)
+    assert settling_time(t, out["sprung_mass_est"], 450.0, 1.5) < 1.0
+    assert abs(np.mean(out["sprung_mass_est"][t > 2.5]) - 450.0) < 0.02 * 450.0
+
+
+# --- road estimation, end to end -----------------------------------------------------------------
+def test_kf_road_estimate_iso_c():
+    t, meas, truth, _ = simulate(T=14.0, seed=4)
+    _, out = run(meas, mass_estimator=0, road_class=3)
+    sc = road_scores(t, out["road_height_est"], truth[:, 4], out["road_height_std"], warmup=4.0)
+    assert sc["err_std_hp_pct"] < 15.0
+    assert 0.85 < sc["gain_hp"] < 1.15
+
+
+def test_joint_estimation_recovers_wrong_mass():
+    t, meas, truth, _ = simulate(T=14.0, seed=5, mass=590.0)
+    _, kf = run(meas, mass_estimator=0, road_class=3)
+    _, joint = run(meas, road_class=3)
+    e_kf = road_scores(t, kf["road_height_est"], truth[:, 4], warmup=4.0)["err_std_hp_pct"]
+    e_joint = road_scores(t, joint["road_height_est"], truth[:, 4], warmup=4.0)["err_std_hp_pct"]
+    assert e_joint < 0.5 * e_kf
+    assert joint["sprung_mass_est"][-1] == pytest.approx(590.0, rel=0.03)
+
+
+def test_mme_kf_runs_and_stays_finite():
+    t, meas, truth, _ = simulate(T=6.0, seed=6)
+    _, out = run(meas, road_estimator=1, mass_estimator=0, road_class=3)
+    assert np.all(np.isfinite(out["road_height_est"]))
+    sc = road_scores(t, out["road_height_est"], truth[:, 4], warmup=2.0)
+    assert sc["err_std_hp_pct"] < 50.0
+
+
+# --- ISO class ---------------------------------------------------------------------------------
+def test_welch_psd_equals_scipy():
+    q = np.random.default_rng(2).standard_normal(2048).cumsum() * 1e-3
+    n, P = welch_psd(q, 0.1, 256)
+    n2, P2 = welch(q, fs=10.0, window="hann", nperseg=256, noverlap=128, detrend="linear")
+    np.testing.assert_allclose(n, n2)
+    np.testing.assert_allclose(P, P2, rtol=1e-10)
+
+
+@pytest.mark.parametrize("cls", [1, 2, 3, 4, 5, 6])
+def test_class_from_true_iso_road(cls):
+    for seed in (1, 2):
+        road = SyntheticRoad(iso8608.class_psd_n0(cls), seed=seed)
+        q = np.array([road.height(s) for s in np.arange(1024) * 0.1 + 37.0])
+        d = grade_index_from_profile(q, 0.1)
+        assert abs(d - iso8608.grade_index(iso8608.class_psd_n0(cls))) < 0.5
+        assert iso8608.class_from_grade_index(d) == cls
+
+
+def test_online_class_from_estimated_road():
+    t, meas, truth, _ = simulate(road_class=2, speed=20.0, T=12.0, seed=7)
+    _, out = run(meas, speed=20.0, mass_estimator=0)
+    c = out["road_class_est"]
+    assert c[0] == 0  # nothing seen yet
+    seen = c > 0
+    assert seen.any()
+    assert np.mean(c[seen] == 2) > 0.9
+
+
+# --- validation and bad input ------------------------------------------------------------------
+@pytest.mark.parametrize("name,value,needle", [
+    ("forgetting_factor", 0.9, "forgetting_factor = 0.9 is outside the allowed range (0.9, 1]"),
+    ("forgetting_factor", 1.01, "forgetting_factor"),
+    ("m_u", -1.0, "m_u = -1.0 is outside the allowed range (0"),
+    ("k_s", 0.0, "k_s"),
+    ("road_estimator", 5, "road_estimator = 5 is outside the allowed range [0, 1]"),
+    ("mass_estimator", -1, "mass_estimator"),
+    ("road_class", 9, "road_class = 9 is outside the allowed range [0, 8]"),
+    ("defl_noise_std", 0.0, "defl_noise_std"),
+])
+def test_validation_messages(name, value, needle):
+    cfg = EstimatorConfig(**{name: value})
+    msgs = validate(cfg)
+    assert any(needle in m for m in msgs), msgs
+    with pytest.raises(ValueError, match=name):
+        SuspensionEstimator(cfg)
+    assert validate(EstimatorConfig()) == []
+
+
+def test_non_finite_measurement_rejected_and_outputs_finite():
+    _, meas, _, _ = simulate(T=1.0)
+    est = SuspensionEstimator(road_class=3)
+    for k, z in enumerate(meas):
+        if k in (300, 301, 302):
+            z = [math.nan, z[1], math.inf]
+        out = est.step(z[0], z[1], z[2], 11.1, 1e-3)
+        if k in (300, 301, 302):
+            assert out["status"] == 1
+        assert all(math.isfinite(v) for v in out.values())
+    assert out["status"] == 0
+
+
+def test_outlier_rejected():
+    _, meas, _, _ = simulate(T=1.0)
+    est = SuspensionEstimator(road_class=3, mass_estimator=0)
+    for z in meas[:500]:
+        est.step(*z, 11.1, 1e-3)
+    out = est.step(meas[500, 0] + 1e3, meas[500, 1], meas[500, 2], 11.1, 1e-3)
+    assert out["status"] == 1
+    assert abs(out["road_height_est"]) < 0.1
