@@ -2,6 +2,12 @@
 current sources, and the tests load them from there (not from the source tree)."""
 from __future__ import annotations
 
+import os
+
+# Small matrices: BLAS threads only cost time (and set before numpy is imported anywhere).
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
 import subprocess
 import sys
 from pathlib import Path
@@ -20,3 +26,23 @@ def dist(tmp_path_factory) -> Path:
     if proc.returncode != 0:
         pytest.fail(f"build.py failed:\n{proc.stdout}\n{proc.stderr}")
     return out
+
+
+_EXIT = pytest.StashKey[int]()
+
+
+def pytest_sessionfinish(session, exitstatus):
+    session.config.stash[_EXIT] = int(exitstatus)
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_unconfigure(config):
+    """Leave without running the C-level exit handlers of the pythonfmu binaries loaded in this
+    process: their destructor can touch the already finalized interpreter and abort the process
+    after every result has been reported (PythonFMU issue 229). Results are flushed first."""
+    status = config.stash.get(_EXIT, None)
+    if status is None:
+        return
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(status)
