@@ -13,6 +13,8 @@ class QuarterCar(ContractSlave):
         vehicle = Vehicle(m_s=self.sprung_mass, m_u=self.m_u, k_s=self.k_s, k_t=self.k_t, c_s=self.c_s)
         noise = SensorNoise(self.acc_sprung_noise_std, self.acc_unsprung_noise_std, self.defl_noise_std)
         self.plant = Plant(vehicle, noise, self.noise_seed, self.acc_sampling)
+        # start at rest on the road it stands on, not with a step from zero at the first step
+        self.plant.settle(self.road_height)
         self._output()
 
     def _output(self) -> None:

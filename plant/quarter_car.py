@@ -72,6 +72,13 @@ class QuarterCar:
         self._key: tuple[float, float] | None = None
         self._A = self._B = self._Ad = self._Bd = None
 
+    def settle(self, road_height: float) -> None:
+        """Put the car at rest in static equilibrium on a road at ``road_height`` (m)."""
+        self.x = np.array([road_height, 0.0, road_height, 0.0])
+        self.road = road_height
+        self.acc_true = np.zeros(2)
+        self.measured = np.zeros(3)
+
     def _matrices(self, m_s: float, h: float) -> None:
         if self._key != (m_s, h):
             self._A, self._B = state_matrices(self.vehicle.with_(m_s=m_s))

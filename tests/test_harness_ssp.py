@@ -82,10 +82,15 @@ def test_fmpy_ssp_runner_matches_the_harness_up_to_its_lag(dist):
         assert np.allclose(ssp[name], alone[name][1:], rtol=1e-12, atol=1e-15 * np.max(np.abs(alone[name]))), name
     assert np.ptp(ssp["QuarterCar.z_s"]) > 1e-4  # the plant moved
 
-    # and the Gauss-Seidel plant is that response without the lead-in: close after it decays
+    # and the Gauss-Seidel plant, which starts at rest on the road's first height where the SSP
+    # runner's starts at 0.0, is that response without the lead-in: close once it has decayed
+    m = 3000
+    ssp = simulate_ssp(str(dist / f"{ROAD_PLANT}.ssp"), stop_time=m * H, step_size=H,
+                       input={"vehicle_speed": lambda t: V})
     with CoSimulation(system, inputs={"vehicle_speed": V}, record=["QuarterCar.z_s"]) as sim:
-        z = sim.run(n * H, H)["QuarterCar.z_s"]
-    assert np.max(np.abs(ssp["QuarterCar.z_s"][1:] - z[:n - 1])) < 0.02 * np.max(np.abs(z))
+        z = sim.run(m * H, H)["QuarterCar.z_s"]
+    late = slice(m - 1000, m - 1)
+    assert np.max(np.abs(ssp["QuarterCar.z_s"][1:][late] - z[:m - 1][late])) < 0.02 * np.max(np.abs(z))
 
 
 def test_fmpy_ssp_runner_runs_the_estimator_system(dist):

@@ -116,6 +116,14 @@ def test_free_response_of_the_fmu_rings_at_the_eigenfrequencies(plant):
         assert abs(f[band][np.argmax(spec[band])] - f_mode) <= 1.5 / (n * h)
 
 
+def test_the_car_starts_at_rest_on_the_road_it_stands_on(plant):
+    p = plant(**QUIET, road_height=0.05)
+    out = p.run(0.001, 500, ["z_s", "z_u", "acc_sprung", "acc_unsprung", "susp_deflection", "tire_force"],
+                road_height=0.05)
+    assert np.allclose(out[:, :2], 0.05, atol=1e-12)
+    assert np.allclose(out[:, 2:], 0.0, atol=1e-9)
+
+
 def test_sensor_noise_is_seeded_white_with_the_set_std(plant):
     stds = {"acc_sprung_noise_std": 0.05, "acc_unsprung_noise_std": 0.3, "defl_noise_std": 2e-4}
     n = 20_000
