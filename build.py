@@ -39,7 +39,8 @@ def build(dist: Path, names: list[str] | None = None) -> list[Path]:
             continue
         files = [SRC / "suspension_fmi", *(ROOT / p for p in packages)]
         out = FmuBuilder.build_FMU(script, dest=dist, project_files=files,
-                                   needsExecutionTool="true", canHandleVariableCommunicationStepSize="true")
+                                   needsExecutionTool="true", canHandleVariableCommunicationStepSize="true",
+                                   canGetAndSetFMUstate="true", canSerializeFMUstate="true")
         print(f"built {out.relative_to(ROOT) if out.is_relative_to(ROOT) else out}")
         built.append(Path(out))
     return built

@@ -10,6 +10,7 @@ from suspension_fmi.slave import ContractSlave
 
 class ISORoad(ContractSlave):
     description = "ISO 8608 road source: elevation under the tyre as a function of travelled distance"
+    state_attributes = ("road",)
 
     def setup(self) -> None:
         if self.profile_file:

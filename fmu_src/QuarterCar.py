@@ -8,6 +8,7 @@ from suspension_fmi.slave import ContractSlave
 
 class QuarterCar(ContractSlave):
     description = "Quarter-car plant: sprung and unsprung mass on a suspension and a tyre, measured with noise"
+    state_attributes = ("plant",)
 
     def setup(self) -> None:
         vehicle = Vehicle(m_s=self.sprung_mass, m_u=self.m_u, k_s=self.k_s, k_t=self.k_t, c_s=self.c_s)

@@ -12,6 +12,7 @@ _CONFIG = ("m_s_nominal", "m_u", "k_s", "k_t", "c_s", "road_estimator", "mass_es
 class SuspensionEstimator(ContractSlave):
     description = ("Road-profile (KF, MME&KF), sprung-mass (forgetting-factor RLS) and ISO 8608 class "
                    "estimation from body and wheel accelerations and suspension deflection")
+    state_attributes = ("core",)
 
     def setup(self) -> None:
         config = EstimatorConfig(**{name: getattr(self, name) for name in _CONFIG})

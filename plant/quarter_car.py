@@ -39,7 +39,8 @@ def discretise(A: np.ndarray, B: np.ndarray, h: float) -> tuple[np.ndarray, np.n
     M[:n, :n] = A
     M[:n, n] = B
     E = expm(M * h)
-    return E[:n, :n], E[:n, n]
+    # contiguous copies: a strided view takes other BLAS paths and rounds differently after a copy
+    return np.ascontiguousarray(E[:n, :n]), np.ascontiguousarray(E[:n, n])
 
 
 @dataclass(frozen=True)

@@ -95,10 +95,15 @@ class SyntheticRoad:
         if not 0 <= waviness <= 5:
             raise ValueError(f"waviness = {waviness!r} is outside the allowed range [0, 5]")
         self.gd_n0 = gd_n0
+        self._args = (float(gd_n0), float(waviness), float(n_min), float(n_max), int(seed))
         h, slope = _synthetic_nodes(float(gd_n0), float(waviness), float(n_min), float(n_max), int(seed))
         s = np.arange(SYNTH_NODES) * SYNTH_DX
         self._curve = _Hermite(s, h, slope, period=SYNTH_NODES * SYNTH_DX)
         self.length = math.inf
+
+    def __reduce__(self):
+        # pickled by its parameters: the 16 MB of nodes are rebuilt (cached) on unpickling
+        return SyntheticRoad, self._args
 
     def height(self, s: float) -> float:
         return self._curve.eval(s)[0]

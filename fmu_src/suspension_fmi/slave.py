@@ -7,7 +7,9 @@ with the reason logged again; a bad input is refused the same way at the step.
 """
 from __future__ import annotations
 
+import base64
 import math
+import pickle
 import uuid
 from xml.etree.ElementTree import Element, SubElement, tostring
 
@@ -30,6 +32,8 @@ class ContractSlave(Fmi2Slave):
 
     author = "suspension-estimation FMU project"
     license = "MIT"
+    # attributes beyond the contract's variables that make up the FMU state (the cores)
+    state_attributes: tuple[str, ...] = ()
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -99,6 +103,25 @@ class ContractSlave(Fmi2Slave):
             self.log(f"{type(self).__name__} at t = {current_time:.6g} s: {e}", Fmi2Status.error)
             return False
         return True
+
+    # -- FMU state -------------------------------------------------------------------------
+    def _get_fmu_state(self) -> dict:
+        """Every variable and the whole core (filter x and P, RLS matrices, road position, plant
+        states, noise generator), deep-copied by pickling into a JSON-safe dict."""
+        snapshot = {v.name: getattr(self, v.name) for v in self.contract}
+        snapshot["_refusal"] = self._refusal
+        for name in self.state_attributes:
+            snapshot[name] = getattr(self, name, None)
+        blob = pickle.dumps(snapshot, protocol=pickle.HIGHEST_PROTOCOL)
+        return {"model": type(self).__name__, "pickle": base64.b64encode(blob).decode("ascii")}
+
+    def _set_fmu_state(self, state: dict) -> None:
+        if state.get("model") != type(self).__name__:
+            self.log(f"FMU state of {state.get('model')!r} cannot be set on {type(self).__name__}",
+                     Fmi2Status.error)
+            return
+        for name, value in pickle.loads(base64.b64decode(state["pickle"])).items():
+            setattr(self, name, value)
 
     # -- model description ------------------------------------------------------------------
     def to_xml(self, model_options=dict()) -> Element:
