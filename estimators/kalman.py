@@ -108,6 +108,25 @@ class LinearKF:
         self.P = P_new
 
 
+    def update_rows(self, z: np.ndarray, rows: np.ndarray, y: np.ndarray | None = None) -> None:
+        """Update with the measurement rows ``rows`` only (the others rejected or missing):
+        H, R and z restricted to them, Joseph form; unfreezes (the covariance leaves its steady
+        state). ``nis`` is that of the rows used."""
+        self.unfreeze()
+        H, R = self.H[rows], self.R[np.ix_(rows, rows)]
+        y = (z[rows] - H @ self.x) if y is None else y[rows]
+        P = self.P
+        PHT = P @ H.T
+        S = H @ PHT + R
+        SI = np.linalg.inv(S)
+        K = PHT @ SI
+        self.x = self.x + K @ y
+        I_KH = self._I - K @ H
+        self.P = I_KH @ P @ I_KH.T + K @ R @ K.T
+        self.P_post = self.P
+        self.nis = float(y @ SI @ y)
+
+
 class MMEKF(LinearKF):
     """MME&KF: the model error d_k is solved from the minimum-model-error criterion and injected
     into the prediction (paper 000 eqs. 16-21).

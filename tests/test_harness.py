@@ -76,8 +76,8 @@ def test_parameters_by_name_of_every_type_land(road_plant, full, tmp_path):
     assert np.allclose(ramp["ISORoad.road_height"], 1e-3 * ramp["ISORoad.distance"], rtol=0, atol=1e-12)
     # Boolean: without mass feedback the estimator is a different filter
     rec_e = ["SuspensionEstimator.road_height_est"]
-    on = simulate(full, record=rec_e, inputs={"vehicle_speed": V, "QuarterCar.sprung_mass": 300.0})
-    off = simulate(full, record=rec_e, inputs={"vehicle_speed": V, "QuarterCar.sprung_mass": 300.0},
+    on = simulate(full, stop=1.5, record=rec_e, inputs={"vehicle_speed": V, "QuarterCar.sprung_mass": 300.0})
+    off = simulate(full, stop=1.5, record=rec_e, inputs={"vehicle_speed": V, "QuarterCar.sprung_mass": 300.0},
                    parameters={"SuspensionEstimator.mass_feedback": False})
     assert not np.array_equal(on[rec_e[0]], off[rec_e[0]])
 
