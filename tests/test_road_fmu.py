@@ -137,3 +137,9 @@ def test_bad_speed_is_refused_at_the_step(road, speed):
     with pytest.raises(FMICallException, match="discard"):
         r.step(0.001, vehicle_speed=speed)
     assert any("vehicle_speed" in m and "[0, 100]" in m for _, m in r.messages), r.messages
+
+
+def test_a_percent_sign_in_a_message_reaches_the_log_verbatim(road, tmp_path):
+    # FMI loggers format the message printf-style: the FMU must escape a literal %
+    r = road(profile_file=str(tmp_path / "no%sfile%d.csv"))
+    assert any("no%sfile%d.csv" in m and "does not exist" in m for _, m in r.messages), r.messages

@@ -72,6 +72,10 @@ class ContractSlave(Fmi2Slave):
         return out
 
     # -- FMI --------------------------------------------------------------------------------
+    def log(self, msg: str, status: Fmi2Status = Fmi2Status.ok, category: str | None = None, debug=None):
+        # FMI 2.0 loggers take the message as a printf format: a literal % must be doubled
+        super().log(msg.replace("%", "%%"), status, category)
+
     def exit_initialization_mode(self):
         problems = [msg for var in self.contract if var.causality == "parameter"
                     and (msg := problem(var, getattr(self, var.name))) is not None]
