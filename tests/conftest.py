@@ -46,3 +46,20 @@ def pytest_unconfigure(config):
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(status)
+
+
+@pytest.fixture
+def driven(dist):
+    """Factory of single FMU instances: ``driven("ISORoad", road_class=4)``; all closed at teardown."""
+    from fmu_driver import Driven
+
+    made = []
+
+    def make(model: str, **params):
+        d = Driven(dist / f"{model}.fmu", params)
+        made.append(d)
+        return d
+
+    yield make
+    for d in made:
+        d.close()

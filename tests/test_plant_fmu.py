@@ -15,17 +15,8 @@ QUIET = {"acc_sprung_noise_std": 0.0, "acc_unsprung_noise_std": 0.0, "defl_noise
 
 
 @pytest.fixture
-def plant(dist):
-    made = []
-
-    def make(**params):
-        d = Driven(dist / "QuarterCar.fmu", params)
-        made.append(d)
-        return d
-
-    yield make
-    for d in made:
-        d.close()
+def plant(driven):
+    return lambda **params: driven("QuarterCar", **params)
 
 
 def drive(p: Driven, road: np.ndarray, h: float, mass: np.ndarray | None = None) -> np.ndarray:

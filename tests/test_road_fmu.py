@@ -5,23 +5,13 @@ import numpy as np
 import pytest
 
 from fmpy.fmi1 import FMICallException
-from fmu_driver import Driven
 from plant import iso8608
 from plant.road import SyntheticRoad
 
 
 @pytest.fixture
-def road(dist):
-    made = []
-
-    def make(**params):
-        d = Driven(dist / "ISORoad.fmu", params)
-        made.append(d)
-        return d
-
-    yield make
-    for d in made:
-        d.close()
+def road(driven):
+    return lambda **params: driven("ISORoad", **params)
 
 
 @pytest.mark.parametrize("road_class", range(1, 9))
