@@ -1,6 +1,14 @@
-"""Command line: ``python -m harness run <scenario> [--out DIR] [--no-plots] [--dist DIR]``.
+"""Command line.
 
-Prints a summary; writes ``<out>/<scenario>.csv`` and PNG plots (default ``results/<scenario>/``).
+``python -m harness run <scenario> [--out DIR] [--no-plots] [--dist DIR]``: prints a summary;
+writes ``<out>/<scenario>.csv`` and PNG plots (default ``results/<scenario>/``).
+
+``python -m harness paper [--seeds N] [--duration S] [--warmup S] [--step S] [--classes B,C,D]
+[--workers N] [--out DIR] [--study10ms] [--dist DIR]``: the papers' studies through the FMUs
+(harness/paper.py); prints the tables and targets as markdown, writes ``<out>/paper_tables.md``,
+``<out>/paper_runs.json`` and PNG plots (default ``results/paper/``). Exits 1 if any run failed
+(after reporting it and finishing the others).
+
 A user error (unknown scenario, bad key, an FMU refusing) prints one line to stderr and exits 1.
 """
 from __future__ import annotations
@@ -40,6 +48,20 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _paper(args: argparse.Namespace) -> int:
+    from .paper import PaperStudy, parse_classes
+
+    study = PaperStudy(seeds=args.seeds, duration=args.duration, warmup=args.warmup, step=args.step,
+                       classes=parse_classes(args.classes), workers=args.workers, study10ms=args.study10ms,
+                       dist=Path(args.dist), out=Path(args.out))
+    study.run(progress=not args.quiet)
+    files = study.write()
+    print(study.markdown(), end="")
+    for f in files:
+        print(f"wrote {f}")
+    return 1 if study.failures() else 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m harness", description="Co-simulate the project's FMUs.")
     sub = ap.add_subparsers(dest="command", required=True)
@@ -49,9 +71,23 @@ def main(argv: list[str] | None = None) -> int:
     run.add_argument("--dist", default=str(DIST), help="folder with the FMUs (default dist/)")
     run.add_argument("--no-plots", dest="plots", action="store_false", help="write no PNG plots")
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    run.set_defaults(func=_run)
+    paper = sub.add_parser("paper", help="the papers' tables (MME&KF Table 2, vehicle-mass case) through the FMUs")
+    paper.add_argument("--seeds", type=int, default=10, help="seeds per cell (default 10)")
+    paper.add_argument("--duration", type=float, default=60.0, help="s per Table-2 run (default 60)")
+    paper.add_argument("--warmup", type=float, default=10.0, help="s not scored at the start (default 10)")
+    paper.add_argument("--step", type=float, default=0.001, help="communication step in s (default 0.001)")
+    paper.add_argument("--classes", default="B,C,D", help="ISO classes of Table 2 (default B,C,D)")
+    paper.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
+    paper.add_argument("--out", default=str(RESULTS / "paper"), help="output folder (default results/paper/)")
+    paper.add_argument("--study10ms", action="store_true",
+                       help="also the Table-2 study at 10 ms with acc_sampling 0 and 1")
+    paper.add_argument("--dist", default=str(DIST), help="folder with the FMUs (default dist/)")
+    paper.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    paper.set_defaults(func=_paper)
     args = ap.parse_args(argv)
     try:
-        return _run(args)
+        return args.func(args)
     except (ScenarioError, FileNotFoundError, KeyError, ValueError, OSError) as e:
         msg = e.args[0] if isinstance(e, KeyError) and e.args else e
         print(f"error: {msg}", file=sys.stderr)
