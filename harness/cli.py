@@ -53,6 +53,7 @@ def _paper(args: argparse.Namespace) -> int:
 
     study = PaperStudy(seeds=args.seeds, duration=args.duration, warmup=args.warmup, step=args.step,
                        classes=parse_classes(args.classes), workers=args.workers, study10ms=args.study10ms,
+                       class_seeds=args.class_study,
                        dist=Path(args.dist), out=Path(args.out))
     study.run(progress=not args.quiet)
     files = study.write()
@@ -82,6 +83,8 @@ def main(argv: list[str] | None = None) -> int:
     paper.add_argument("--out", default=str(RESULTS / "paper"), help="output folder (default results/paper/)")
     paper.add_argument("--study10ms", action="store_true",
                        help="also the Table-2 study at 10 ms with acc_sampling 0 and 1")
+    paper.add_argument("--class-study", type=int, default=0, metavar="N",
+                       help="also the online-class study, ISO A-E at 10, 20, 30 m/s, with N seeds (default 0: off)")
     paper.add_argument("--dist", default=str(DIST), help="folder with the FMUs (default dist/)")
     paper.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     paper.set_defaults(func=_paper)

@@ -145,3 +145,12 @@ def test_the_workers_leave_the_fmus_their_own_packages():
     code = "import sys, harness.paper; print(sorted(m for m in ('plant', 'estimators') if m in sys.modules))"
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=60)
     assert proc.returncode == 0 and proc.stdout.strip() == "[]", proc.stdout + proc.stderr
+
+
+def test_the_online_class_study_identifies_the_class(dist):
+    from harness.paper import run_one
+
+    r = run_one(RunSpec("class", 4, 2, 15.0, 2.0, 2e-3, str(dist), speed=20.0))
+    assert r["ok"], r.get("error")
+    assert r["class_first_s"] < 10.0  # a 102.4 m window at 20 m/s
+    assert r["class_right"] >= 0.95 and set(r["class_counts"]) <= {3, 4, 5}
