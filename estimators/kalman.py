@@ -151,13 +151,17 @@ class MMEKF(LinearKF):
       update does not count d twice.
     """
 
-    def __init__(self, dim_x: int, dim_z: int, W: float = 10.0, **kw):
+    def __init__(self, dim_x: int, dim_z: int, W: float = 10.0, direct: bool = True, **kw):
         super().__init__(dim_x, dim_z, **kw)
         self.W = np.atleast_2d(float(W)) if np.ndim(W) == 0 else np.asarray(W, float)
         self.G = np.zeros((dim_x, 1))
         self.G[1, 0] = 1.0
+        # direct feed-through of d into the measured body acceleration: present for a point
+        # sample at the end of the step; for an acceleration averaged over the step
+        # ((v_k - v_{k-1}) / h) the effect of d is already in H Gamma, so E = 0
         self.E = np.zeros((dim_z, 1))
-        self.E[0, 0] = 1.0
+        if direct:
+            self.E[0, 0] = 1.0
         self.Gamma = self.G.copy()
         self.d = np.zeros(1)
         self._L = None

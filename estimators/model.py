@@ -68,6 +68,9 @@ from plant.vehicle import Vehicle
 
 N_STATES = 6
 IZS, IVS, IZU, IVU, IZR, IVR = range(6)
+# acc_sampling = 1 (accelerations averaged over the step) appends the previous step's v_s, v_u
+IVS_PREV, IVU_PREV = 6, 7
+N_STATES_AVG = 8
 
 
 @dataclass(frozen=True)
@@ -173,6 +176,30 @@ def discretise(A: np.ndarray, Qc: np.ndarray, h: float) -> tuple[np.ndarray, np.
     return Phi, 0.5 * (Qd + Qd.T)
 
 
+def discretise_held_road(A: np.ndarray, Qc: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact (Phi, Q_d) when the vehicle sees the road HELD over the step at its end-of-step
+    value z_r,k, as in a co-simulation where the road is a communicated input (plant.QuarterCar,
+    the contract's road_height "held over the step"). The road states still evolve continuously.
+
+    With A0 = A without the road's action on the vehicle rows, b that action (column IZR of the
+    vehicle rows), Phi0, Q0 = Van Loan of (A0, Qc) and Gamma0 = int_0^h expm(A0 s) ds b:
+    x_k = Phi0 x_{k-1} + Gamma0 z_r,k + w_k with z_r,k = e_r' x_k, hence
+    x_k = M (Phi0 x_{k-1} + w_k), M = (I - Gamma0 e_r')^-1."""
+    n = A.shape[0]
+    A0 = A.copy()
+    b = np.zeros((n, 1))
+    for r in (IVS, IVU):
+        b[r, 0] = A[r, IZR]
+        A0[r, IZR] = 0.0
+    Phi0, Q0 = discretise(A0, Qc, h)
+    G0 = held_input_matrix(A0, b, h)
+    E = np.eye(n)
+    E[:, IZR] -= G0[:, 0]
+    M = np.linalg.inv(E)
+    Q = M @ Q0 @ M.T
+    return np.ascontiguousarray(M @ Phi0), 0.5 * (Q + Q.T)
+
+
 def measurement_covariance(acc_sprung_std: float, acc_unsprung_std: float,
                            defl_std: float | None) -> np.ndarray:
     """R = diag of the assumed sensor noise variances ((m/s^2)^2, (m/s^2)^2, m^2)."""
@@ -182,9 +209,44 @@ def measurement_covariance(acc_sprung_std: float, acc_unsprung_std: float,
     return np.diag(d)
 
 
+def averaged_output_matrix(h: float, deflection: bool = True) -> np.ndarray:
+    """H (3 or 2, 8) of the averaged-acceleration model (acc_sampling = 1): an accelerometer
+    behind an anti-alias filter integrating over the sample reports the step average
+    a_avg,k = (1/h) int a dt = (v_k - v_{k-1}) / h EXACTLY (for any input within the step), so
+    with the previous step's velocities as states 6, 7 the rows are (v_s - v_s,prev) / h and
+    (v_u - v_u,prev) / h; the deflection stays a point sample at the end of the step.
+
+    The rows are physical, as in ``output_matrix``: the common-mode reference acts on all three
+    bodies in the model's dynamics (a prior), the sensors see the physical accelerations."""
+    rows = [np.zeros(N_STATES_AVG), np.zeros(N_STATES_AVG)]
+    rows[0][IVS], rows[0][IVS_PREV] = 1.0 / h, -1.0 / h
+    rows[1][IVU], rows[1][IVU_PREV] = 1.0 / h, -1.0 / h
+    if deflection:
+        d = np.zeros(N_STATES_AVG)
+        d[IZS], d[IZU] = 1.0, -1.0
+        rows.append(d)
+    return np.array(rows)
+
+
+def augment_previous_velocities(Phi: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(Phi, Q) of the 8-state model: states 6, 7 take the previous v_s, v_u (no noise)."""
+    n = Phi.shape[0]
+    Phi8 = np.zeros((N_STATES_AVG, N_STATES_AVG))
+    Phi8[:n, :n] = Phi
+    Phi8[IVS_PREV, IVS] = 1.0
+    Phi8[IVU_PREV, IVU] = 1.0
+    Q8 = np.zeros((N_STATES_AVG, N_STATES_AVG))
+    Q8[:n, :n] = Q
+    return Phi8, Q8
+
+
 @dataclass
 class DiscreteModel:
-    """Phi, Q_d, H, R of the augmented model at one (vehicle, speed, Gd(n0), h)."""
+    """Phi, Q_d, H, R of the augmented model at one (vehicle, speed, Gd(n0), h).
+
+    ``acc_sampling`` 0: 6 states, accelerations sampled at the end of the step (``output_matrix``);
+    1: 8 states (the previous v_s, v_u appended), accelerations averaged over the step
+    (``averaged_output_matrix``). A stays the continuous 6-state matrix."""
 
     vehicle: Vehicle
     speed: float
@@ -194,15 +256,22 @@ class DiscreteModel:
     Phi: np.ndarray
     Q: np.ndarray
     H: np.ndarray
+    acc_sampling: int = 0
 
     @classmethod
     def build(cls, vehicle: Vehicle, speed: float, gd_n0: float, h: float,
               road: RoadModel = RoadModel(), noise: ModelNoise = ModelNoise(),
-              deflection: bool = True) -> "DiscreteModel":
+              deflection: bool = True, acc_sampling: int = 0,
+              road_hold: bool = False) -> "DiscreteModel":
         A = state_matrix(vehicle, speed, road)
-        Phi, Q = discretise(A, noise_intensity(gd_n0, speed, road, noise), h)
-        return cls(vehicle, float(speed), float(gd_n0), float(h), A, Phi, Q,
-                   output_matrix(vehicle, deflection))
+        Qc = noise_intensity(gd_n0, speed, road, noise)
+        Phi, Q = discretise_held_road(A, Qc, h) if road_hold else discretise(A, Qc, h)
+        if acc_sampling == 1:
+            Phi, Q = augment_previous_velocities(Phi, Q)
+            H = averaged_output_matrix(h, deflection)
+        else:
+            H = output_matrix(vehicle, deflection)
+        return cls(vehicle, float(speed), float(gd_n0), float(h), A, Phi, Q, H, int(acc_sampling))
 
 
 def held_input_matrix(A: np.ndarray, G: np.ndarray, h: float) -> np.ndarray:

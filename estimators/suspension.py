@@ -26,6 +26,7 @@ prediction for ``reinit_after`` s (a diverged filter), not after a burst on one 
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field, fields
 
 import numpy as np
@@ -35,8 +36,8 @@ from plant.vehicle import Vehicle, VEHICLE_RANGES, check_range
 
 from .kalman import LinearKF, MMEKF
 from .mass import MassEstimator
-from .model import (IVR, IVS, IVU, IZR, IZS, IZU, N_STATES, DiscreteModel, ModelNoise, RoadModel,
-                    held_input_matrix, measurement_covariance)
+from .model import (IVR, IVS, IVU, IZR, IZS, IZU, N_STATES, N_STATES_AVG, DiscreteModel, ModelNoise,
+                    RoadModel, held_input_matrix, measurement_covariance)
 from .road_class import RoadClassifier
 
 OUTPUTS = ("road_height_est", "road_velocity_est", "road_height_std", "z_s_est", "v_s_est",
@@ -63,7 +64,14 @@ class EstimatorConfig:
     acc_sprung_noise_std: float = 0.02  # m/s^2
     acc_unsprung_noise_std: float = 0.2  # m/s^2
     defl_noise_std: float = 1e-4  # m
+    # 0 = accelerations sampled at the end of the step, 1 = averaged over the step (must match
+    # the sensor): 1 appends the previous v_s, v_u to the state (8 states), see model.py
+    acc_sampling: int = 0
     # --- beyond the contract (tuned once, for all classes and speeds) ---
+    # the vehicle sees the road held over the step at its end-of-step value (co-simulation
+    # convention); -1 = only with acc_sampling = 1, 0 = never, 1 = always
+    road_hold: int = -1
+    # ---
     use_deflection: bool = True  # use the deflection sensor in the road filter
     mme_weight: float = 10.0  # W of MME&KF, (m/s^2)^-2
     estimate_damping: bool = False  # RLS on [m_s, c] instead of m_s
@@ -91,6 +99,14 @@ class EstimatorConfig:
     road_model: RoadModel = field(default_factory=RoadModel)
     model_noise: ModelNoise = field(default_factory=ModelNoise)
     class_gain: float = 1.0  # in-band amplitude gain of the road estimate (class correction)
+    # Re-filtering after a mass rebuild (see the module doc): when the road filter is rebuilt at
+    # a new mass within refilter_span s of the onset of the mass change (the start of the run, or
+    # the RLS change detection minus refilter_lookback s), the filter is re-run from a snapshot
+    # taken before the onset over the buffered measurements with the new model. 0 disables.
+    refilter_span: float = 2.0  # s
+    refilter_lookback: float = 0.05  # s before the RLS change detection
+    refilter_confirm: float = 0.5  # s of agreement of data and model mass that close an episode
+    snapshot_interval: float = 0.02  # s between filter snapshots
 
     def vehicle(self, m_s: float | None = None) -> Vehicle:
         return Vehicle(m_s=self.m_s_nominal if m_s is None else m_s, m_u=self.m_u, k_s=self.k_s,
@@ -102,7 +118,8 @@ class EstimatorConfig:
         for name, key in (("m_s_nominal", "m_s"), ("m_u", "m_u"), ("k_s", "k_s"), ("k_t", "k_t"),
                           ("c_s", "c_s")):
             msgs.append(check_range(name, float(getattr(self, name)), *VEHICLE_RANGES[key]))
-        for name, hi in (("road_estimator", 1), ("mass_estimator", 1), ("road_class", 8)):
+        for name, hi in (("road_estimator", 1), ("mass_estimator", 1), ("road_class", 8),
+                         ("acc_sampling", 1)):
             val = getattr(self, name)
             if isinstance(val, float) and not val.is_integer():
                 msgs.append(f"{name} = {val!r} must be an integer in [0, {hi}]")
@@ -137,10 +154,14 @@ class SuspensionEstimator:
         self.R = measurement_covariance(cfg.acc_sprung_noise_std, cfg.acc_unsprung_noise_std,
                                         cfg.defl_noise_std if cfg.use_deflection else None)
         dim_z = self.R.shape[0]
+        self.acc_sampling = int(cfg.acc_sampling)
+        self.n_states = N_STATES_AVG if self.acc_sampling == 1 else N_STATES
+        self._road_hold = bool(cfg.road_hold == 1 or (cfg.road_hold == -1 and self.acc_sampling == 1))
         if cfg.road_estimator == 1:
-            self.kf: LinearKF = MMEKF(N_STATES, dim_z, W=cfg.mme_weight, freeze_tol=cfg.freeze_tol)
+            self.kf: LinearKF = MMEKF(self.n_states, dim_z, W=cfg.mme_weight, freeze_tol=cfg.freeze_tol,
+                                      direct=self.acc_sampling == 0)
         else:
-            self.kf = LinearKF(N_STATES, dim_z, freeze_tol=cfg.freeze_tol)
+            self.kf = LinearKF(self.n_states, dim_z, freeze_tol=cfg.freeze_tol)
         self.kf.R = self.R
         self.mass_est = (MassEstimator(cfg.m_s_nominal, cfg.k_s, cfg.c_s, cfg.forgetting_factor,
                                        cfg.estimate_damping) if cfg.mass_estimator == 1 else None)
@@ -154,15 +175,30 @@ class SuspensionEstimator:
         self._same_time = [0.0] * self.R.shape[0]
         self._last_rebuild = -math.inf
         self.outputs: dict[str, float] = {}
+        # re-filtering buffers (see the module doc): recorded measurements and update decisions,
+        # periodic snapshots of the filter, the onset of the current mass change
+        self._steps = 0
+        self._epoch_step = 0  # step of the last model rebuild for a reason other than the mass
+        self._record: deque = deque()
+        self._snaps: deque = deque()
+        self._onset = 0.0  # start of the current mass-change episode (s)
+        self._confirmed_for = 0.0  # s the model mass has agreed with the data without a break
+        self._resets_seen = 0
+        self.refilters = 0
         self.reset_state()
 
     # --- state -----------------------------------------------------------------------------
     def reset_state(self) -> None:
         """Zero state; the car starts at rest at static equilibrium (contract convention), so the
         body and wheel states are known to 0.1 mm / 0.1 mm/s, the road to 1 cm / 0.1 m/s."""
-        self.kf.x = np.zeros(N_STATES)
-        self.kf.P = np.diag([1e-4, 1e-4, 1e-4, 1e-4, 1e-2, 1e-1]) ** 2
+        n = self.n_states
+        self.kf.x = np.zeros(n)
+        self.kf.P = np.diag([1e-4, 1e-4, 1e-4, 1e-4, 1e-2, 1e-1, 1e-4, 1e-4][:n]) ** 2
+        self.kf.P_post = None
         self.kf.unfreeze()
+        self._record.clear()
+        self._snaps.clear()
+        self._snaps.append((self.time, self._steps, self.kf.x.copy(), self.kf.P.copy()))
 
     @property
     def assumed_class(self) -> int:
@@ -175,18 +211,82 @@ class SuspensionEstimator:
         cls = self.assumed_class
         gd = iso8608.class_psd_n0(max(cls, int(self.cfg.q_class_min)))
         v = max(abs(speed), 0.1)
-        if (m is not None and m.h == h and m.gd_n0 == gd and m.vehicle.m_s == self.m_model
-                and abs(v - m.speed) <= self.cfg.speed_rebuild_tol * m.speed):
+        same_rest = (m is not None and m.h == h and m.gd_n0 == gd
+                     and abs(v - m.speed) <= self.cfg.speed_rebuild_tol * m.speed)
+        if same_rest and m.vehicle.m_s == self.m_model:
             return
+        if not same_rest:
+            self._epoch_step = self._steps  # steps before this one used another model
+        if same_rest:
+            v = m.speed  # a mass rebuild keeps the speed the buffered steps were filtered at
         self.model = DiscreteModel.build(self.cfg.vehicle(self.m_model), v, gd, h,
                                          self.cfg.road_model, self.cfg.model_noise,
-                                         self.cfg.use_deflection)
+                                         self.cfg.use_deflection, self.acc_sampling,
+                                         self._road_hold)
         if isinstance(self.kf, MMEKF):
-            G = self.kf.G
-            self.kf.set_model(self.model.Phi, self.model.Q, self.model.H, self.R,
-                              Gamma=held_input_matrix(self.model.A, G, h))
+            Gamma = np.zeros((self.n_states, 1))
+            Gamma[:N_STATES] = held_input_matrix(self.model.A, self.kf.G[:N_STATES], h)
+            self.kf.set_model(self.model.Phi, self.model.Q, self.model.H, self.R, Gamma=Gamma)
         else:
             self.kf.set_model(self.model.Phi, self.model.Q, self.model.H, self.R)
+
+    def _filter(self, z: np.ndarray, rows) -> None:
+        """Replay one recorded step: rows None = full update, else the rows used (may be none)."""
+        kf = self.kf
+        if rows is None:
+            if isinstance(kf, MMEKF):
+                kf.step(z)
+            else:
+                kf.predict()
+                kf.update(z)
+        else:
+            kf.predict_only()
+            if len(rows):
+                kf.update_rows(z, rows)
+
+    def _refilter(self) -> bool:
+        """Re-run the road filter (already rebuilt at the new mass) from the latest snapshot
+        taken at or before the onset of the mass change, over the buffered measurements, with
+        the recorded update decisions (full, some rows, none). Exact: the state AND covariance
+        are then those the filter would have had with the new mass since the snapshot, so the
+        common mode is not left where the wrong-mass innovations pushed it. False if no
+        snapshot applies (too old, or the model changed for another reason since)."""
+        onset = self._onset
+        if self.time - onset > self.cfg.refilter_span:
+            return False
+        snap = None
+        for sn in self._snaps:
+            if sn[0] <= onset + 1e-12:
+                snap = sn
+            else:
+                break
+        if snap is None or self._epoch_step > snap[1] + 1:
+            return False
+        _, k0, x0, P0 = snap
+        kf = self.kf
+        kf.x, kf.P, kf.P_post = x0.copy(), P0.copy(), None
+        kf.unfreeze()
+        for k, z, rows in self._record:
+            if k > k0:
+                self._filter(z, rows)
+        self.refilters += 1
+        return True
+
+    def _episode_closed(self) -> bool:
+        return (self._confirmed_for >= self.cfg.refilter_confirm
+                or self.time - self._onset > self.cfg.refilter_span)
+
+    def _keep_snapshots(self) -> None:
+        """Snapshot the filter every snapshot_interval s; drop what no re-filter can use."""
+        cfg, snaps = self.cfg, self._snaps
+        if not snaps or self.time - snaps[-1][0] >= cfg.snapshot_interval - 1e-12:
+            snaps.append((self.time, self._steps, self.kf.x.copy(), self.kf.P.copy()))
+        old = self.time - cfg.refilter_span - cfg.refilter_lookback
+        while len(snaps) > 1 and snaps[1][0] <= old:
+            snaps.popleft()
+        rec, k0 = self._record, snaps[0][1]
+        while rec and rec[0][0] <= k0:
+            rec.popleft()
 
     def _live(self, vals: tuple[float, ...], h: float) -> list[bool]:
         """Per channel: finite and not frozen. Frozen = the value has not changed (bit for bit)
@@ -227,6 +327,7 @@ class SuspensionEstimator:
         z = np.array(vals)
         self.time += h
         self.distance += abs(speed) * h
+        self._steps += 1
         self._ensure_model(speed, h)
         live = self._live(vals, h)
         all_live = all(live)
@@ -258,6 +359,7 @@ class SuspensionEstimator:
                     kf.x, kf.P = x_pred, P_pred
                     valid[:] = False
         rejected_all = outliers and not valid.any()
+        rows = None if valid is None or valid.all() else np.flatnonzero(valid)
         if valid is None or valid.all():
             valid = (True, True, True)
         self._rejected_time = self._rejected_time + h if rejected_all else 0.0
@@ -269,6 +371,8 @@ class SuspensionEstimator:
         if not math.isfinite(float(kf.x.sum()) + float(kf.P.sum())):
             self.reset_state()
             status = STATUS_REINIT
+        if cfg.refilter_span > 0 and status != STATUS_REINIT:
+            self._record.append((self._steps, z, rows))
 
         if self.mass_est is not None:
             # substitute the filter's own value for a rejected body acceleration or deflection
@@ -278,13 +382,27 @@ class SuspensionEstimator:
             d_use = deflection if ok_d else float(kf.x[IZS] - kf.x[IZU])
             me = self.mass_est
             me.update(a_use, d_use, h, use=ok_a and ok_d and status != STATUS_REINIT)
-            if (cfg.mass_feedback and me.samples * h >= cfg.mass_warmup
-                    and self.time - self._last_rebuild >= cfg.mass_rebuild_interval):
+            if me.resets != self._resets_seen:  # a payload change detected
+                self._resets_seen = me.resets
+                if self._episode_closed():  # else: still part of the open one (e.g. the start)
+                    self._onset = self.time - cfg.refilter_lookback
+                    self._confirmed_for = 0.0
+            if cfg.mass_feedback and me.samples * h >= cfg.mass_warmup:
                 m = me.mass_slow
-                thr = max(cfg.mass_rebuild_tol * self.m_model, cfg.mass_rebuild_sigma * me.mass_slow_std(h))
-                if abs(m - self.m_model) > thr:
-                    self.m_model = m  # the road filter is rebuilt at the next step
+                sd = me.mass_slow_std(h)
+                thr = max(cfg.mass_rebuild_tol * self.m_model, cfg.mass_rebuild_sigma * sd)
+                agree = abs(m - self.m_model) <= thr
+                # the model mass is confirmed by enough data: closes the re-filter episode
+                self._confirmed_for = self._confirmed_for + h if agree and math.isfinite(sd) else 0.0
+                if not agree and self.time - self._last_rebuild >= cfg.mass_rebuild_interval:
+                    self.m_model = m
                     self._last_rebuild = self.time
+                    if cfg.refilter_span > 0:
+                        self._ensure_model(speed, h)  # rebuild now and re-filter the change
+                        if not self._episode_closed():
+                            self._refilter()
+        if cfg.refilter_span > 0:
+            self._keep_snapshots()
         x = kf.x
         if status != STATUS_REINIT:
             self.classifier.update(self.distance, float(x[IZR]), speed)

@@ -24,7 +24,8 @@
     mass 260 -> 450 kg at 1.5 s -> 350 kg at 4 s (the plant's ``sprung_mass`` input), ISO C,
     40 km/h, an estimator of the same vehicle starting at 260 kg with its default mass estimator.
 (c) ``--study10ms``: (a) at a 10 ms step with the plant's ``acc_sampling`` = 0 (accelerations
-    sampled at the end of the step) and = 1 (averaged over the step, an anti-aliased sensor).
+    sampled at the end of the step) and = 1 (averaged over the step, an anti-aliased sensor); the
+    estimators are given the same ``acc_sampling``, so each models its sensor.
 
 Seed index i (1..N) drives the road (``ISORoad.seed`` = i) and the sensor noise
 (``QuarterCar.noise_seed`` = 1000 + i); every class and mass uses the same seeds. Runs are
@@ -233,7 +234,8 @@ def _table2(spec: RunSpec) -> dict:
     names = [e.instance for e in ESTIMATORS]
     params = _plant_params(spec)
     for e in ESTIMATORS:
-        p = {**_vehicle_params(spec), **NOISE, "road_class": 0,
+        # every estimator is told how the sensor samples (acc_sampling), as a user would set it
+        p = {**_vehicle_params(spec), **NOISE, "road_class": 0, "acc_sampling": spec.acc_sampling,
              "m_s_nominal": spec.mass if e.true_mass else NOMINAL_MASS, **e.parameters}
         params.update({f"{e.instance}.{k}": v for k, v in p.items()})
     record = ["ISORoad.road_height"] + [f"{n}.{v}" for n in names for v in (

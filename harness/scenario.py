@@ -29,8 +29,8 @@ given as a path. Keys (units in brackets; everything but ``duration`` and ``step
     defl_std = 0.0001          # [m]
 
     [plant]                    # QuarterCar parameters by name (override [noise] for the plant
-                               # only); its m_u, k_s, k_t, c_s are also the vehicle the
-                               # estimator assumes
+                               # only); its m_u, k_s, k_t, c_s and acc_sampling are also
+                               # what the estimator assumes
     [estimator]                # SuspensionEstimator parameters by name (override both)
 
     [output]
@@ -59,7 +59,7 @@ _NOISE = {"seed": "noise_seed", "acc_sprung_std": "acc_sprung_noise_std",
           "acc_unsprung_std": "acc_unsprung_noise_std", "defl_std": "defl_noise_std"}
 _OUTPUT = {"record", "plots"}
 _CLASSES = "ABCDEFGH"
-_VEHICLE = ("m_u", "k_s", "k_t", "c_s")
+_VEHICLE = ("m_u", "k_s", "k_t", "c_s", "acc_sampling")  # also told to the estimator
 
 
 class ScenarioError(ValueError):

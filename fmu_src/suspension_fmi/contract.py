@@ -136,6 +136,9 @@ SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
                 "unsprung-mass accelerometer noise the filters assume (sets R)", (0.0, 1e3, False, True)),
     _real_param("defl_noise_std", "m", NOISE.deflection, "deflection-sensor noise the filters assume (sets R)",
                 (0.0, 1.0, False, True)),
+    Var("acc_sampling", "parameter", "Integer", None, 0,
+        "0 = accelerations sampled at the end of the step; 1 = averaged over the step (anti-alias filtered "
+        "sensor); must match the sensor", {0: "end of step", 1: "average over the step"}),
     Var("acc_sprung", "input", "Real", "m/s2", 0.0, "measured sprung-mass acceleration"),
     Var("acc_unsprung", "input", "Real", "m/s2", 0.0, "measured unsprung-mass acceleration"),
     Var("susp_deflection", "input", "Real", "m", 0.0, "measured suspension deflection z_s - z_u"),
