@@ -144,6 +144,25 @@ def _claim_logger() -> None:
     addLoggerProxy(byref(cb))
 
 
+class LogSink:
+    """FMI callbacks for one FMU instance, with every message it logs kept in ``messages`` as
+    (status name, text). Pass ``callbacks`` to ``FMU2Slave.instantiate``; ``close()`` when done."""
+
+    def __init__(self):
+        self.messages: list[tuple[str, str]] = []
+        self.env = next(_ENVIRONMENTS)
+        _SINKS[self.env] = self.messages
+        self.callbacks = fmi2CallbackFunctions()
+        self.callbacks.logger = _LOGGER
+        self.callbacks.allocateMemory = defaultCallbacks.allocateMemory
+        self.callbacks.freeMemory = defaultCallbacks.freeMemory
+        self.callbacks.componentEnvironment = self.env
+        addLoggerProxy(byref(self.callbacks))
+
+    def close(self) -> None:
+        _SINKS.pop(self.env, None)
+
+
 class _Instance:
     """One FMU instance with its model description, a logger that keeps its messages, and the
     pre-resolved value references of what the master sets and gets every step."""
@@ -154,17 +173,10 @@ class _Instance:
         if self.md.coSimulation is None:
             raise ValueError(f"{name}: {fmu.name} does not support co-simulation")
         self.vars = {v.name: v for v in self.md.modelVariables}
-        self.messages: list[tuple[str, str]] = []
         self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=unzipdir,
                              modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=name)
-        self.env = next(_ENVIRONMENTS)
-        _SINKS[self.env] = self.messages
-        self.callbacks = fmi2CallbackFunctions()
-        self.callbacks.logger = _LOGGER
-        self.callbacks.allocateMemory = defaultCallbacks.allocateMemory
-        self.callbacks.freeMemory = defaultCallbacks.freeMemory
-        self.callbacks.componentEnvironment = self.env
-        addLoggerProxy(byref(self.callbacks))
+        self.log = LogSink()
+        self.messages, self.callbacks = self.log.messages, self.log.callbacks
         self.instantiated = False
         self.initialized = False
         # Unloading a pythonfmu binary (dlclose) corrupts the heap of the host process, seen as an
@@ -477,7 +489,7 @@ class CoSimulation:
                     inst.fmu.freeLibrary()
             except Exception:  # noqa: BLE001 - freeing must not mask the real error
                 pass
-            _SINKS.pop(inst.env, None)
+            inst.log.close()
         self.instances = {}
         shutil.rmtree(self._tmp, ignore_errors=True)
 

@@ -2,15 +2,15 @@
 from __future__ import annotations
 
 import shutil
-from ctypes import byref
 import tempfile
 from pathlib import Path
 
 import numpy as np
 from fmpy import extract, read_model_description
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, defaultCallbacks
-from fmpy.logging import addLoggerProxy
+from fmpy.fmi2 import FMU2Slave
+
+from harness.cosim import STATUS, LogSink
 
 
 class Driven:
@@ -20,15 +20,10 @@ class Driven:
         self.md = read_model_description(str(fmu))
         self.dir = extract(str(fmu), unzipdir=tempfile.mkdtemp())
         self.vars = {v.name: v for v in self.md.modelVariables}
-        self.messages: list[tuple[int, str]] = []
         self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self.dir,
                              modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=name)
-        self.callbacks = fmi2CallbackFunctions()
-        self.callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
-        self.callbacks.allocateMemory = defaultCallbacks.allocateMemory
-        self.callbacks.freeMemory = defaultCallbacks.freeMemory
-        addLoggerProxy(byref(self.callbacks))
-        self.fmu.instantiate(loggingOn=True, callbacks=self.callbacks)
+        self.log = LogSink()  # the harness's per-instance sink: FMPy's logger proxy is process-wide
+        self.fmu.instantiate(loggingOn=True, callbacks=self.log.callbacks)
         self.fmu.setupExperiment(startTime=0.0)
         self.fmu.enterInitializationMode()
         for k, v in (parameters or {}).items():
@@ -36,8 +31,10 @@ class Driven:
         self.fmu.exitInitializationMode()
         self.t = 0.0
 
-    def _log(self, env, instance, status, category, message) -> None:
-        self.messages.append((int(status), message.decode(errors="replace")))
+    @property
+    def messages(self) -> list[tuple[int, str]]:
+        """(fmi2Status number, text) of every message this instance logged."""
+        return [(STATUS.index(label), text) for label, text in self.log.messages]
 
     def set(self, name: str, value) -> None:
         var = self.vars[name]
@@ -77,4 +74,5 @@ class Driven:
         except FMICallException:
             pass
         self.fmu.freeInstance()
+        self.log.close()
         shutil.rmtree(self.dir, ignore_errors=True)

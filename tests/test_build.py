@@ -145,3 +145,12 @@ def test_all_fmus_in_one_process_and_two_instances_stay_independent(dist):
     finally:
         for d in (a, b, p):
             d.close()
+
+
+def test_messages_reach_the_instance_that_logged_them(driven):
+    good = driven("ISORoad", road_class=2)
+    bad = driven("ISORoad", road_class=9)
+    later = driven("QuarterCar", k_s=-1.0)
+    assert good.messages == []
+    assert any("road_class = 9" in m for _, m in bad.messages) and not any("k_s" in m for _, m in bad.messages)
+    assert any("k_s = -1.0" in m for _, m in later.messages)
