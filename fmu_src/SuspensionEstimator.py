@@ -16,11 +16,8 @@ class SuspensionEstimator(ContractSlave):
     state_attributes = ("core",)
 
     def setup(self) -> None:
-        config = EstimatorConfig(**{name: getattr(self, name) for name in _CONFIG})
-        problems = config.problems()
-        if problems:
-            raise ValueError("; ".join(problems))
-        self.core = Core(config)
+        # the core validates its configuration and raises one message naming every bad parameter
+        self.core = Core(EstimatorConfig(**{name: getattr(self, name) for name in _CONFIG}))
         self.sprung_mass_est = float(self.m_s_nominal)
 
     def step(self, t: float, h: float) -> None:
