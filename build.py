@@ -3,7 +3,9 @@
     python build.py [--dist DIR]
 
 Every FMU bundles the plain-Python core (plant/, estimators/) and the adapter package
-fmu_src/suspension_fmi/. Exits non-zero with the reason if a build fails.
+fmu_src/suspension_fmi/. With all three FMUs built, it also writes the fmucontainer wiring file
+SuspensionSystem.csv and builds the container FMU SuspensionSystem.fmu from it
+(harness/container.py). Exits non-zero with the reason if a build fails.
 """
 from __future__ import annotations
 
@@ -61,6 +63,11 @@ def main(argv: list[str] | None = None) -> int:
         if write_system_ssps is not None and not args.names:
             for p in write_system_ssps(args.dist):
                 print(f"wrote {p.name}")
+        if not args.names and all((args.dist / f"{n}.fmu").is_file() for n in FMUS):
+            from harness.container import build_container
+
+            out = build_container(args.dist)
+            print(f"wrote {out.with_suffix('.csv').name}, built {out.name}")
     except Exception as e:  # noqa: BLE001 - one line for the user, non-zero exit
         print(f"build failed: {type(e).__name__}: {e}", file=sys.stderr)
         return 1
