@@ -6,9 +6,11 @@ import zipfile
 
 import numpy as np
 import pytest
+from fmpy import read_model_description
 from fmpy.ssp.simulation import simulate_ssp
 from fmpy.ssp.ssd import read_ssd
 
+from fmu_driver import Driven
 from harness.cosim import CoSimulation, System
 from harness.ssp import ROAD_PLANT, ROAD_PLANT_ESTIMATOR, SYSTEMS, read_ssp, write_system_ssps
 
@@ -53,6 +55,41 @@ def test_ssp_round_trip(dist, name):
     assert system.inputs == ["vehicle_speed"]
 
 
+def _assert_same(got: np.ndarray, want: np.ndarray, name: str) -> None:
+    """Equal to 1e-12 of the signal's scale (the same FMU fed the same numbers: in fact bit-identical)."""
+    scale = np.max(np.abs(want))
+    assert np.max(np.abs(got - want)) <= 1e-12 * scale, f"{name}: max |diff| {np.max(np.abs(got - want)):.3g}"
+
+
+def _plant_outputs(system) -> list[str]:
+    return [f"QuarterCar.{v.name}" for v in read_model_description(str(system.components["QuarterCar"]),
+                                                                   validate=False).modelVariables
+            if v.causality == "output"]
+
+
+def _lagged_road_and_plant(dist, system, ssp, n):
+    """The harness's road at t_0..t_(n-1), and the harness's plant driven alone with the road the SSP
+    runner gives it ([0, r(t_0), r(t_1), ...]); its rows 1..n are the SSP runner's rows 0..n-1."""
+    with CoSimulation(system, inputs={"vehicle_speed": V}, record=["ISORoad.road_height", "ISORoad.road_velocity",
+                                                                   "ISORoad.distance"]) as sim:
+        gs = sim.run(n * H, H)
+    plant = System({"QuarterCar": system.components["QuarterCar"]})
+    lagged_road = np.r_[0.0, gs["ISORoad.road_height"][:n - 1]]
+    with CoSimulation(plant, inputs={"QuarterCar.road_height": lagged_road}, record=_plant_outputs(system)) as sim:
+        alone = sim.run(n * H, H)
+    for name in ("ISORoad.road_height", "ISORoad.distance"):
+        assert np.array_equal(ssp[name], gs[name][:n]), name
+    # the velocity is the slope times the speed the road had in its step: 0 in the runner's first
+    assert ssp["ISORoad.road_velocity"][0] == 0.0
+    assert np.array_equal(ssp["ISORoad.road_velocity"][1:], gs["ISORoad.road_velocity"][1:n])
+    assert np.array_equal(ssp["QuarterCar.road_height"], gs["ISORoad.road_height"][:n])  # fed at the next step
+    for name in _plant_outputs(system):
+        if name in ssp.dtype.names:
+            _assert_same(ssp[name], alone[name][1:], name)
+    assert np.ptp(ssp["QuarterCar.z_s"]) > 1e-4  # the plant moved
+    return gs, alone
+
+
 def test_fmpy_ssp_runner_matches_the_harness_up_to_its_lag(dist):
     """FMPy's runner steps all FMUs, then moves every connection: each connection lags one step,
     connections start at 0.0, rows carry the step's start time. So (rows k, n steps):
@@ -66,21 +103,9 @@ def test_fmpy_ssp_runner_matches_the_harness_up_to_its_lag(dist):
     ssp = simulate_ssp(str(dist / f"{ROAD_PLANT}.ssp"), stop_time=n * H, step_size=H,
                        input={"vehicle_speed": lambda t: V})
     assert len(ssp) == n and ssp["time"][0] == 0.0
+    assert np.allclose(ssp["time"], H * np.arange(n), rtol=0, atol=1e-12)
     system = read_ssp(dist / f"{ROAD_PLANT}.ssp", fmu_dir=dist)
-    rec = ["ISORoad.road_height", "ISORoad.distance"]
-    with CoSimulation(system, inputs={"vehicle_speed": V}, record=rec) as sim:
-        gs = sim.run(n * H, H)
-    for name in rec:
-        assert np.array_equal(ssp[name], gs[name][:n]), name
-
-    plant = System({"QuarterCar": system.components["QuarterCar"]})
-    lagged_road = np.r_[0.0, gs["ISORoad.road_height"][:n - 1]]
-    states = ["QuarterCar.z_s", "QuarterCar.z_u", "QuarterCar.acc_sprung_true", "QuarterCar.tire_force"]
-    with CoSimulation(plant, inputs={"QuarterCar.road_height": lagged_road}, record=states) as sim:
-        alone = sim.run(n * H, H)
-    for name in states:
-        assert np.allclose(ssp[name], alone[name][1:], rtol=1e-12, atol=1e-15 * np.max(np.abs(alone[name]))), name
-    assert np.ptp(ssp["QuarterCar.z_s"]) > 1e-4  # the plant moved
+    _lagged_road_and_plant(dist, system, ssp, n)
 
     # and the Gauss-Seidel plant, which starts at rest on the road's first height where the SSP
     # runner's starts at 0.0, is that response without the lead-in: close once it has decayed
@@ -93,11 +118,41 @@ def test_fmpy_ssp_runner_matches_the_harness_up_to_its_lag(dist):
     assert np.max(np.abs(ssp["QuarterCar.z_s"][1:][late] - z[:m - 1][late])) < 0.02 * np.max(np.abs(z))
 
 
-def test_fmpy_ssp_runner_runs_the_estimator_system(dist):
+def test_fmpy_ssp_runner_matches_the_harness_up_to_its_lag_with_the_estimator(dist):
+    """RoadPlantEstimator.ssp in FMPy's runner: road and plant as above; SuspensionEstimator,
+    initialized at its start values, gets at step k the speed and measurements one step late
+    (0.0 at step 0): it is the estimator driven alone with vehicle_speed [0, V, V, ...] and the
+    measurements [0, y_1, ..., y_(n-1)] of the harness's plant of the lagged road (rows 1..),
+    and its outputs after step k are the runner's row k."""
     if ROAD_PLANT_ESTIMATOR not in _systems(dist):
         pytest.skip("SuspensionEstimator.fmu is not built yet")
-    r = simulate_ssp(str(dist / f"{ROAD_PLANT_ESTIMATOR}.ssp"), stop_time=0.1, step_size=H,
-                     input={"vehicle_speed": lambda t: V})
-    assert len(r) == 100
-    assert np.all(np.isfinite(r["SuspensionEstimator.road_height_est"]))
-    assert np.ptp(r["SuspensionEstimator.road_height_est"]) > 0
+    n = 1000
+    ssp = simulate_ssp(str(dist / f"{ROAD_PLANT_ESTIMATOR}.ssp"), stop_time=n * H, step_size=H,
+                       input={"vehicle_speed": lambda t: V})
+    assert len(ssp) == n
+    system = read_ssp(dist / f"{ROAD_PLANT_ESTIMATOR}.ssp", fmu_dir=dist)
+    _, alone = _lagged_road_and_plant(dist, system, ssp, n)
+
+    measured = ("acc_sprung", "acc_unsprung", "susp_deflection")
+    speed = np.r_[0.0, np.full(n - 1, V)]
+    inputs = {m: np.r_[0.0, alone[f"QuarterCar.{m}"][1:n]] for m in measured}
+    element = {e.name: e for e in read_ssd(str(dist / f"{ROAD_PLANT_ESTIMATOR}.ssp")).system.elements}
+    outputs = [c.name for c in element["SuspensionEstimator"].connectors if c.kind == "output"]
+    assert {"road_height_est", "road_height_std", "sprung_mass_est", "road_class_est", "status"} <= set(outputs)
+    est = Driven(system.components["SuspensionEstimator"], {})
+    try:
+        rows = []
+        for k in range(n):
+            est.step(H, vehicle_speed=speed[k], **{m: inputs[m][k] for m in measured})
+            rows.append([est.get(o) for o in outputs])
+        assert not [m for s, m in est.messages if s >= 2]
+    finally:
+        est.close()
+    rows = np.array(rows, dtype=float)
+    for m in measured:
+        assert np.array_equal(ssp[f"SuspensionEstimator.{m}"][:n - 1], inputs[m][1:]), m
+    for j, o in enumerate(outputs):
+        name = f"SuspensionEstimator.{o}"
+        assert np.max(np.abs(ssp[name] - rows[:, j])) <= 1e-9, f"{name}: max |diff| {np.max(np.abs(ssp[name] - rows[:, j])):.3g}"
+    assert np.ptp(rows[:, outputs.index("road_height_est")]) > 1e-3
+    assert np.ptp(rows[:, outputs.index("sprung_mass_est")]) > 1.0
