@@ -9,6 +9,12 @@ writes ``<out>/<scenario>.csv`` and PNG plots (default ``results/<scenario>/``).
 ``<out>/paper_runs.json`` and PNG plots (default ``results/paper/``). Exits 1 if any run failed
 (after reporting it and finishing the others).
 
+``python -m harness sweep <file> [--workers N] [--scheduler ADDRESS] [--out DIR] [--dist DIR]
+[--skip-failed] [--limit N]``: a grid or Monte Carlo study on Dask (harness/sweep.py); one row of
+metrics per run and estimator streamed to Parquet (default the file's ``output``), skipping runs
+already there; prints a summary. Exits 1 if a run failed now (after recording it and finishing
+the others).
+
 A user error (unknown scenario, bad key, an FMU refusing) prints one line to stderr and exits 1.
 """
 from __future__ import annotations
@@ -20,6 +26,7 @@ from pathlib import Path
 from .cosim import SimulationError
 from .runner import DIST, RESULTS, run_scenario, summary
 from .scenario import ScenarioError, load_scenario
+from .sweep import SweepError
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -63,6 +70,25 @@ def _paper(args: argparse.Namespace) -> int:
     return 1 if study.failures() else 0
 
 
+def _sweep(args: argparse.Namespace) -> int:
+    from .sweep import load_sweep, run_sweep, summary
+
+    sweep = load_sweep(args.sweep)
+    if args.limit is not None and args.limit < 0:
+        raise ValueError(f"--limit = {args.limit} must be >= 0")
+    rep = run_sweep(sweep, dist=Path(args.dist), out=Path(args.out) if args.out else None, workers=args.workers,
+                    scheduler=args.scheduler, skip_failed=args.skip_failed, limit=args.limit,
+                    progress=not args.quiet)
+    where = f"on {rep.workers} Dask workers" if rep.workers else "in this process"
+    print(f"{sweep.name}: {rep.rows} rows; {rep.done_before} done before; {rep.runs} runs now, {rep.written} rows "
+          f"({rep.failed} failed) in {rep.wall_s:.1f} s {where}")
+    lines = summary(rep.output)
+    if len(lines) <= 102:
+        print("\n".join(lines))
+    print(f"wrote {rep.output} ({len(rep.files)} new part files)")
+    return 1 if rep.failed else 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m harness", description="Co-simulate the project's FMUs.")
     sub = ap.add_subparsers(dest="command", required=True)
@@ -88,10 +114,21 @@ def main(argv: list[str] | None = None) -> int:
     paper.add_argument("--dist", default=str(DIST), help="folder with the FMUs (default dist/)")
     paper.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     paper.set_defaults(func=_paper)
+    sweep = sub.add_parser("sweep", help="a grid or Monte Carlo study on Dask, rows of metrics to Parquet")
+    sweep.add_argument("sweep", help="sweep name (e.g. small_grid, paper_table2) or path to a .toml file")
+    sweep.add_argument("--workers", type=int, default=2,
+                       help="Dask worker processes of a local cluster (default 2; 0 = in this process, no Dask)")
+    sweep.add_argument("--scheduler", metavar="ADDRESS", help="use the Dask cluster at ADDRESS instead")
+    sweep.add_argument("--out", help="output folder of Parquet part files (default: the file's output)")
+    sweep.add_argument("--dist", default=str(DIST), help="folder with the FMUs (default dist/)")
+    sweep.add_argument("--skip-failed", action="store_true", help="do not run again what failed before")
+    sweep.add_argument("--limit", type=int, help="run at most N co-simulations now")
+    sweep.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    sweep.set_defaults(func=_sweep)
     args = ap.parse_args(argv)
     try:
         return args.func(args)
-    except (ScenarioError, FileNotFoundError, KeyError, ValueError, OSError) as e:
+    except (ScenarioError, SweepError, FileNotFoundError, KeyError, ValueError, OSError) as e:
         msg = e.args[0] if isinstance(e, KeyError) and e.args else e
         print(f"error: {msg}", file=sys.stderr)
         return 1

@@ -245,6 +245,7 @@ class CoSimulation:
         self.start_time = float(start_time)
         self._tmp = Path(tempfile.mkdtemp(prefix="harness-"))
         self.instances: dict[str, _Instance] = {}
+        self._used = False  # a run has begun since construction or the last reset()
         try:
             self._load()
             self._resolve()
@@ -264,6 +265,13 @@ class CoSimulation:
                 unzipped[key] = extract(str(fmu), unzipdir=str(self._tmp / f"{len(unzipped)}_{fmu.stem}"))
             self.instances[name] = _Instance(name, fmu, unzipped[key])
 
+    def _check_parameters(self) -> None:
+        for key in self.parameters:
+            inst, var = _split(key)
+            if inst not in self.instances:
+                raise KeyError(f"parameter {key!r}: no instance {inst!r} in {self.system.name}")
+            self.instances[inst].var(var)
+
     def _resolve(self) -> None:
         """Check every name and pre-resolve the value references of the step loop.
 
@@ -271,11 +279,9 @@ class CoSimulation:
         per-instance inputs from ``inputs``, then every output some connection or the record
         reads (one slot per ``instance.variable``).
         """
-        for key in self.parameters:
-            inst, var = _split(key)
-            if inst not in self.instances:
-                raise KeyError(f"parameter {key!r}: no instance {inst!r} in {self.system.name}")
-            self.instances[inst].var(var)
+        self._check_parameters()
+        for inst in self.instances.values():
+            inst.sets, inst.gets = [], []
 
         slots: dict[str, int] = {}
 
@@ -385,7 +391,8 @@ class CoSimulation:
         ``step_size`` is a constant, or a sequence with the size of every step (then
         ``stop_time`` may be omitted). ``progress(n)`` is called with the number of steps done
         since its last call, about every 1 % of the run. Returns the record; on a refusal
-        raises ``SimulationError`` carrying the record so far.
+        raises ``SimulationError`` carrying the record so far. A second ``run()`` begins with
+        ``reset()``.
         """
         t0 = self.start_time
         if np.ndim(step_size) == 0:
@@ -414,6 +421,9 @@ class CoSimulation:
         rec = self._record_slots
         order = [self.instances[k] for k in self.system.order]
 
+        if self._used:
+            self.reset()
+        self._used = True
         _claim_logger()
         # initialization: each instance in order, with its parameters and the inputs at t0
         first = table[0] if n else []
@@ -421,8 +431,9 @@ class CoSimulation:
             buf[s] = first[j]
         for inst in order:
             try:
-                inst.fmu.instantiate(loggingOn=True, callbacks=inst.callbacks)
-                inst.instantiated = True
+                if not inst.instantiated:
+                    inst.fmu.instantiate(loggingOn=True, callbacks=inst.callbacks)
+                    inst.instantiated = True
                 inst.fmu.setupExperiment(startTime=t0)
                 inst.fmu.enterInitializationMode()
                 prefix = inst.name + "."
@@ -471,6 +482,40 @@ class CoSimulation:
             if progress is not None and k + 1 > done:
                 progress(k + 1 - done)
         return self._result(rows, times)
+
+    def reset(self, parameters: Mapping[str, object] | None = None,
+              inputs: Mapping[str, InputValue] | None = None) -> None:
+        """Make the next ``run()`` start afresh on the same instances (FMPy's parameter-variation
+        pattern: extract and instantiate once, reset between runs).
+
+        Every instantiated FMU gets ``fmi2Reset`` (back to its state after instantiation, its
+        variables at their start values; pythonfmu re-runs the slave's ``__init__``) and its log
+        is cleared. ``parameters`` and ``inputs``, when given, replace those of the constructor
+        (same meaning; ``record`` stays). An instance that refuses the reset is freed and
+        instantiated again by the next run.
+        """
+        if parameters is not None:
+            self.parameters = dict(parameters)
+        if inputs is not None:
+            inputs = dict(inputs)
+            same = list(inputs) == list(self.inputs)
+            self.inputs = inputs
+            if not same:  # other external inputs: resolve the wiring again
+                self._resolve()
+        self._check_parameters()
+        for inst in self.instances.values():
+            if inst.instantiated:
+                try:
+                    inst.fmu.reset()
+                except FMICallException:  # e.g. after fmi2Fatal: start over with a new instance
+                    try:
+                        inst.fmu.fmi2FreeInstance(inst.fmu.component)
+                    except Exception:  # noqa: BLE001 - a new instance is made either way
+                        pass
+                    inst.instantiated = False
+            inst.initialized = False
+            inst.messages.clear()
+        self._used = False
 
     # -- tear-down ------------------------------------------------------------------------------
     def close(self) -> None:

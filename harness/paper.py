@@ -153,6 +153,8 @@ class RunSpec:
     traces: bool = False
     vehicle: tuple[float, float, float, float] = PAPER000_VEHICLE  # m_u, k_s, k_t, c_s of plant and estimators
     speed: float = SPEED  # m/s
+    noise: tuple[float, float, float] = tuple(NOISE.values())  # m/s2, m/s2, m: plant's sensors, estimators' model
+    nominal_mass: float = NOMINAL_MASS  # kg, what the estimators of a table-2 run assume (unless true_mass)
 
     @property
     def name(self) -> str:
@@ -180,16 +182,72 @@ def _vehicle_params(spec: RunSpec) -> dict:
     return dict(zip(VEHICLE_KEYS, map(float, spec.vehicle)))
 
 
+def _noise(spec: RunSpec) -> dict:
+    return dict(zip(NOISE, map(float, spec.noise)))
+
+
 def _plant_params(spec: RunSpec) -> dict:
     p = {"ISORoad.road_class": spec.road_class, "ISORoad.seed": spec.seed,
          "QuarterCar.noise_seed": NOISE_SEED_OFFSET + spec.seed, "QuarterCar.acc_sampling": spec.acc_sampling}
-    p.update({f"QuarterCar.{k}": v for k, v in {**_vehicle_params(spec), **NOISE}.items()})
+    p.update({f"QuarterCar.{k}": v for k, v in {**_vehicle_params(spec), **_noise(spec)}.items()})
     return p
 
 
-def _instrument(sim: CoSimulation) -> dict[str, list[float]] | None:
+class Simulations:
+    """CoSimulations kept for reuse across runs, one per system and record (at most ``size``): a
+    run of an already seen system resets its instances (``CoSimulation.reset``) instead of
+    extracting and instantiating the FMUs again. Each process keeps its own (a sweep worker keeps
+    one for its lifetime)."""
+
+    def __init__(self, size: int = 2):
+        self.size = size
+        self._sims: dict[tuple, CoSimulation] = {}
+
+    @staticmethod
+    def _key(system: System, record: Sequence[str]) -> tuple:
+        return (tuple((k, str(v)) for k, v in system.components.items()), tuple(system.connections),
+                tuple(system.order), tuple(record))
+
+    def get(self, system: System, parameters: dict, inputs: dict, record: list[str]) -> CoSimulation:
+        """A CoSimulation of ``system`` ready to run with these parameters and inputs."""
+        key = self._key(system, record)
+        sim = self._sims.pop(key, None)
+        if sim is not None:
+            sim.reset(parameters, inputs)
+        else:
+            while len(self._sims) >= max(1, self.size):
+                self._sims.pop(next(iter(self._sims))).close()
+            sim = CoSimulation(system, parameters=parameters, inputs=inputs, record=record)
+        self._sims[key] = sim  # most recently used last
+        return sim
+
+    def discard(self, sim: CoSimulation) -> None:
+        """Close ``sim`` and forget it (after a failure its instances may be unusable)."""
+        for key, s in list(self._sims.items()):
+            if s is sim:
+                del self._sims[key]
+        sim.close()
+
+    def close(self) -> None:
+        for sim in self._sims.values():
+            sim.close()
+        self._sims = {}
+
+
+def _instrument(sim: CoSimulation) -> tuple[dict[str, list[float]] | None, Callable[[], None]]:
     """Time every instance's doStep and its set/get calls (s, summed), by wrapping the callables
-    the master uses. Returns None if the master's internals are not as expected."""
+    the master uses. Returns the sums (None if the master's internals are not as expected) and a
+    function that removes the wrappers again."""
+    saved = [(inst, inst.fmu.__dict__.get("doStep"), inst.sets, inst.gets) for inst in sim.instances.values()]
+
+    def undo() -> None:
+        for inst, do_step, sets, gets in saved:
+            if do_step is None:
+                inst.fmu.__dict__.pop("doStep", None)
+            else:
+                inst.fmu.doStep = do_step
+            inst.sets, inst.gets = sets, gets
+
     try:
         acc: dict[str, list[float]] = {}
         for name, inst in sim.instances.items():
@@ -207,19 +265,33 @@ def _instrument(sim: CoSimulation) -> dict[str, list[float]] | None:
             inst.fmu.doStep = timed(inst.fmu.doStep, a, 0)
             inst.sets = [(timed(s, a, 1), vrs, idx) for s, vrs, idx in inst.sets]
             inst.gets = [(timed(g, a, 1), vrs, idx) for g, vrs, idx in inst.gets]
-        return acc
+        return acc, undo
     except (AttributeError, TypeError, ValueError):
-        return None
+        undo()
+        return None, undo
 
 
 def _simulate(system: System, parameters: dict, inputs: dict, record: list[str], spec: RunSpec,
-              duration: float) -> tuple[np.ndarray, dict]:
-    """Run and return the record and where the time went (µs per step)."""
-    with CoSimulation(system, parameters=parameters, inputs=inputs, record=record) as sim:
-        acc = _instrument(sim)
-        t0 = time.perf_counter()
-        result = sim.run(duration, spec.step)
-        wall = time.perf_counter() - t0
+              duration: float, sims: Simulations | None = None) -> tuple[np.ndarray, dict]:
+    """Run and return the record and where the time went (µs per step). With ``sims`` the
+    CoSimulation is taken from (and left in) that cache, else made and closed here."""
+    sim = sims.get(system, parameters, inputs, record) if sims is not None else \
+        CoSimulation(system, parameters=parameters, inputs=inputs, record=record)
+    try:
+        acc, undo = _instrument(sim)
+        try:
+            t0 = time.perf_counter()
+            result = sim.run(duration, spec.step)
+            wall = time.perf_counter() - t0
+        finally:
+            undo()
+    except BaseException:
+        if sims is not None:
+            sims.discard(sim)
+        raise
+    finally:
+        if sims is None:
+            sim.close()
     n = max(len(result) - 1, 1)
     timing = {"run_s": wall, "steps": n, "us_per_step": 1e6 * wall / n}
     if acc is not None:
@@ -229,19 +301,22 @@ def _simulate(system: System, parameters: dict, inputs: dict, record: list[str],
     return result, timing
 
 
-def _table2(spec: RunSpec) -> dict:
+def _table2(spec: RunSpec, estimators: Sequence[Estimator] = ESTIMATORS, sims: Simulations | None = None) -> dict:
+    """One table-2 run: one road and one plant feeding an instance of every estimator; scores
+    per estimator instance in ``["estimators"]``."""
     dist = Path(spec.dist)
-    names = [e.instance for e in ESTIMATORS]
+    names = [e.instance for e in estimators]
     params = _plant_params(spec)
-    for e in ESTIMATORS:
+    for e in estimators:
         # every estimator is told how the sensor samples (acc_sampling), as a user would set it
-        p = {**_vehicle_params(spec), **NOISE, "road_class": 0, "acc_sampling": spec.acc_sampling,
-             "m_s_nominal": spec.mass if e.true_mass else NOMINAL_MASS, **e.parameters}
+        p = {**_vehicle_params(spec), **_noise(spec), "road_class": 0, "acc_sampling": spec.acc_sampling,
+             "m_s_nominal": spec.mass if e.true_mass else spec.nominal_mass, **e.parameters}
         params.update({f"{e.instance}.{k}": v for k, v in p.items()})
     record = ["ISORoad.road_height"] + [f"{n}.{v}" for n in names for v in (
         "road_height_est", "road_height_std", "sprung_mass_est", "road_class_est", "status")]
-    r, timing = _simulate(_system(dist, names), params, {"vehicle_speed": SPEED, "QuarterCar.sprung_mass": spec.mass},
-                          record, spec, spec.duration)
+    r, timing = _simulate(_system(dist, names), params,
+                          {"vehicle_speed": spec.speed, "QuarterCar.sprung_mass": spec.mass},
+                          record, spec, spec.duration, sims)
     t, truth = r["time"], r["ISORoad.road_height"]
     scored = t >= t[0] + spec.warmup
     out: dict = {"timing": timing, "estimators": {}}
@@ -281,7 +356,7 @@ def _mass(spec: RunSpec) -> dict:
     m0 = MASS_SCHEDULE[0][1]
     params = _plant_params(spec)
     params.update({f"SuspensionEstimator.{k}": x for k, x in
-                   {**_vehicle_params(spec), **NOISE, "m_s_nominal": m0}.items()})
+                   {**_vehicle_params(spec), **_noise(spec), "m_s_nominal": m0}.items()})
     schedule = Profile(np.array([t for t, _ in MASS_SCHEDULE]), np.array([m for _, m in MASS_SCHEDULE]), "step")
     record = ["ISORoad.road_height", "QuarterCar.sprung_mass", "SuspensionEstimator.sprung_mass_est",
               "SuspensionEstimator.road_height_est"]
@@ -304,7 +379,7 @@ def _class(spec: RunSpec) -> dict:
     """(d) The online ISO class of the default estimator on one class at one speed."""
     dist = Path(spec.dist)
     params = _plant_params(spec)
-    params.update({f"SuspensionEstimator.{k}": x for k, x in {**_vehicle_params(spec), **NOISE}.items()})
+    params.update({f"SuspensionEstimator.{k}": x for k, x in {**_vehicle_params(spec), **_noise(spec)}.items()})
     record = ["ISORoad.road_height", "SuspensionEstimator.road_class_est", "SuspensionEstimator.road_height_est"]
     r, timing = _simulate(_system(dist, ["SuspensionEstimator"]), params,
                           {"vehicle_speed": spec.speed, "QuarterCar.sprung_mass": NOMINAL_MASS}, record, spec,
@@ -318,15 +393,21 @@ def _class(spec: RunSpec) -> dict:
             if len(seen) else {}, "err_std_hp_pct": scores["err_std_hp_pct"]}
 
 
-def run_one(spec: RunSpec) -> dict:
-    """Co-simulate one run; never raises: a failure is returned as ``ok = False`` with its reason."""
+def run_one(spec: RunSpec, estimators: Sequence[Estimator] = ESTIMATORS, sims: Simulations | None = None) -> dict:
+    """Co-simulate one run; never raises: a failure is returned as ``ok = False`` with its reason
+    (and, when an FMU refused, the name of its ``instance``). ``estimators`` are those of a
+    table-2 run; ``sims`` a cache of CoSimulations to reuse (table-2 runs only)."""
     t0 = time.perf_counter()
     res: dict = {"spec": asdict(spec), "name": spec.name, "ok": False}
     try:
-        res.update({"mass": _mass, "class": _class}.get(spec.study, _table2)(spec))
+        if spec.study in ("mass", "class"):
+            res.update({"mass": _mass, "class": _class}[spec.study](spec))
+        else:
+            res.update(_table2(spec, estimators, sims))
         res["ok"] = True
     except SimulationError as e:
         res["error"] = str(e)
+        res["instance"] = e.instance
     except Exception as e:  # noqa: BLE001 - one broken run must not end the study
         res["error"] = f"{type(e).__name__}: {e}"
         res["traceback"] = traceback.format_exc(limit=4)
