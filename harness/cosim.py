@@ -27,7 +27,8 @@ from pathlib import Path
 import numpy as np
 from fmpy import extract, read_model_description
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+from fmpy.fmi2 import (FMU2Slave, defaultCallbacks, fmi2Boolean, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE,
+                       fmi2Integer, fmi2Real, fmi2True, fmi2ValueReference)
 from fmpy.logging import addLoggerProxy
 
 STATUS = ("ok", "warning", "discard", "error", "fatal", "pending")
@@ -185,6 +186,7 @@ class _Instance:
         # per type: (value references, buffer indices) set before / got after each step
         self.sets: list[tuple[Callable, list[int], list[int]]] = []
         self.gets: list[tuple[Callable, list[int], list[int]]] = []
+        self.do_step = self.fast_do_step()  # (t, h): what the step loop calls
 
     def var(self, name: str, causalities: Sequence[str] | None = None):
         v = self.vars.get(name)
@@ -219,6 +221,60 @@ class _Instance:
 
     def getter(self, vtype: str) -> Callable:
         return {"Real": self.fmu.getReal, "Integer": self.fmu.getInteger, "Boolean": self.fmu.getBoolean}[vtype]
+
+    # The step loop's calls. FMPy's setReal/getReal build two ctypes arrays and go through a
+    # logging dispatcher on every call; these make the arrays once and call the FMI function
+    # directly, with FMPy's status check (FMICallException above fmi2Warning). They fall back to
+    # FMPy's methods if its internals are not as expected.
+    def _c_function(self, name: str):
+        return getattr(self.fmu, "_functions", {}).get(name)
+
+    def fast_setter(self, vtype: str, vrs: Sequence[int]) -> Callable:
+        """``f(vrs, values)`` that sets ``values`` to these ``vrs`` (the first argument is ignored)."""
+        name = f"fmi2Set{vtype}"
+        c_fun = self._c_function(name)
+        if c_fun is None:
+            return self.setter(vtype)
+        n, fmu = len(vrs), self.fmu
+        vr = (fmi2ValueReference * n)(*vrs)
+        val = ({"Real": fmi2Real, "Integer": fmi2Integer, "Boolean": fmi2Boolean}[vtype] * n)()
+
+        def set_values(_vrs, values) -> None:
+            val[:] = values
+            status = c_fun(fmu.component, vr, n, val)
+            if status > 1:
+                raise FMICallException(function=name, status=status)
+        return set_values
+
+    def fast_getter(self, vtype: str, vrs: Sequence[int]) -> Callable:
+        """``f(vrs)`` that returns the values of these ``vrs`` as a list (the argument is ignored)."""
+        name = f"fmi2Get{vtype}"
+        c_fun = self._c_function(name)
+        if c_fun is None:
+            return self.getter(vtype)
+        n, fmu = len(vrs), self.fmu
+        vr = (fmi2ValueReference * n)(*vrs)
+        val = ({"Real": fmi2Real, "Integer": fmi2Integer, "Boolean": fmi2Boolean}[vtype] * n)()
+
+        def get_values(_vrs) -> list:
+            status = c_fun(fmu.component, vr, n, val)
+            if status > 1:
+                raise FMICallException(function=name, status=status)
+            return val[:]
+        return get_values
+
+    def fast_do_step(self) -> Callable[[float, float], None]:
+        """``f(t, h)``: ``doStep(t, h)``."""
+        c_fun = self._c_function("fmi2DoStep")
+        fmu = self.fmu
+        if c_fun is None:
+            return lambda t, h: fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+
+        def do_step(t: float, h: float) -> None:
+            status = c_fun(fmu.component, t, h, fmi2True)
+            if status > 1:
+                raise FMICallException(function="fmi2DoStep", status=status)
+        return do_step
 
 
 class CoSimulation:
@@ -340,12 +396,12 @@ class CoSimulation:
                 ins = [(end.split(".", 1)[1], starts[0]) for end, starts in feeds.items()
                        if end.split(".", 1)[0] == name and inst.vars[end.split(".", 1)[1]].type == vtype]
                 if ins:
-                    inst.sets.append((inst.setter(vtype), [inst.vars[v].valueReference for v, _ in ins],
-                                      [slot(s) for _, s in ins]))
+                    vrs = [inst.vars[v].valueReference for v, _ in ins]
+                    inst.sets.append((inst.fast_setter(vtype, vrs), vrs, [slot(s) for _, s in ins]))
                 outs = list(dict.fromkeys(v for v in wanted[name] if inst.vars[v].type == vtype))
                 if outs:
-                    inst.gets.append((inst.getter(vtype), [inst.vars[v].valueReference for v in outs],
-                                      [slot(f"{name}.{v}") for v in outs]))
+                    vrs = [inst.vars[v].valueReference for v in outs]
+                    inst.gets.append((inst.fast_getter(vtype, vrs), vrs, [slot(f"{name}.{v}") for v in outs]))
         self._buf: list = [0.0] * len(slots)
         self._record_slots = [slots[k] for k in self.record]
         self._record_types = [self.instances[_split(k)[0]].vars[_split(k)[1]].type for k in self.record]
@@ -467,7 +523,7 @@ class CoSimulation:
                     for setter, vrs, idx in inst.sets:
                         setter(vrs, [buf[i] for i in idx])
                     try:
-                        inst.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+                        inst.do_step(t, h)
                     except FMICallException as e:
                         raise self._fail(inst, t, f"refused the step ({STATUS[e.status]})",
                                          rows, k + 1, times) from None

@@ -354,7 +354,7 @@ _LOCAL = threading.local()  # per worker thread: its CoSimulations and the numbe
 
 def _worker_state():
     if not hasattr(_LOCAL, "sims"):
-        _LOCAL.sims, _LOCAL.runs = paper.Simulations(), 0
+        _LOCAL.sims, _LOCAL.runs = paper.Simulations(instrument=False), 0
     return _LOCAL
 
 
