@@ -95,7 +95,12 @@ class EstimatorConfig:
     # filter); a burst of bad samples on some channels is predicted through instead.
     reinit_after: float = 0.2  # s
     frozen_time: float = 0.05  # s a channel may repeat its value bit for bit before it is rejected
-    freeze_tol: float = 1e-13  # steady-state gain freeze tolerance (0 = always full KF)
+    # The road filter starts at the stationary covariance of its model (DARE), again whenever the
+    # model is rebuilt or the filter re-initialised, and keeps its gain frozen there (kalman.py);
+    # after a skipped or partial update it runs the full recursion until the posterior
+    # covariance is back within freeze_tol (relative) of the fixed point.
+    freeze_tol: float = 1e-8
+    fast_gain: bool = True  # False: the full covariance recursion every step (same estimates)
     road_model: RoadModel = field(default_factory=RoadModel)
     model_noise: ModelNoise = field(default_factory=ModelNoise)
     class_gain: float = 1.0  # in-band amplitude gain of the road estimate (class correction)
@@ -159,14 +164,15 @@ class SuspensionEstimator:
         self._road_hold = bool(cfg.road_hold == 1 or (cfg.road_hold == -1 and self.acc_sampling == 1))
         if cfg.road_estimator == 1:
             self.kf: LinearKF = MMEKF(self.n_states, dim_z, W=cfg.mme_weight, freeze_tol=cfg.freeze_tol,
-                                      direct=self.acc_sampling == 0)
+                                      fast=cfg.fast_gain, direct=self.acc_sampling == 0)
         else:
-            self.kf = LinearKF(self.n_states, dim_z, freeze_tol=cfg.freeze_tol)
+            self.kf = LinearKF(self.n_states, dim_z, freeze_tol=cfg.freeze_tol, fast=cfg.fast_gain)
         self.kf.R = self.R
         self.mass_est = (MassEstimator(cfg.m_s_nominal, cfg.k_s, cfg.c_s, cfg.forgetting_factor,
                                        cfg.estimate_damping) if cfg.mass_estimator == 1 else None)
         self.classifier = RoadClassifier(gain=cfg.class_gain)
         self.model: DiscreteModel | None = None
+        self._model_key: tuple | None = None
         self.m_model = float(cfg.m_s_nominal)
         self.time = 0.0
         self.distance = 0.0
@@ -189,16 +195,25 @@ class SuspensionEstimator:
 
     # --- state -----------------------------------------------------------------------------
     def reset_state(self) -> None:
-        """Zero state; the car starts at rest at static equilibrium (contract convention), so the
-        body and wheel states are known to 0.1 mm / 0.1 mm/s, the road to 1 cm / 0.1 m/s."""
+        """Zero state at the stationary covariance of the model (before the first step, when
+        there is no model yet: body and wheel known to 0.1 mm / 0.1 mm/s, road to 1 cm / 0.1 m/s;
+        the first step builds the model and sets the stationary covariance)."""
         n = self.n_states
-        self.kf.x = np.zeros(n)
-        self.kf.P = np.diag([1e-4, 1e-4, 1e-4, 1e-4, 1e-2, 1e-1, 1e-4, 1e-4][:n]) ** 2
-        self.kf.P_post = None
-        self.kf.unfreeze()
+        kf = self.kf
+        kf.x = np.zeros(n)
+        kf.P_post = None
+        kf.unfreeze()
+        if self.model is None or not kf.stationary():
+            kf.P = np.diag([1e-4, 1e-4, 1e-4, 1e-4, 1e-2, 1e-1, 1e-4, 1e-4][:n]) ** 2
         self._record.clear()
         self._snaps.clear()
-        self._snaps.append((self.time, self._steps, self.kf.x.copy(), self.kf.P.copy()))
+        # before the first model the filter is due to start at that model's fixed point
+        self._snap(stationary=self.model is None or kf.stationary_now)
+
+    def _snap(self, stationary: bool | None = None) -> None:
+        kf = self.kf
+        st = kf.stationary_now if stationary is None else stationary
+        self._snaps.append((self.time, self._steps, kf.x.copy(), kf.P.copy(), st))
 
     @property
     def assumed_class(self) -> int:
@@ -207,6 +222,17 @@ class SuspensionEstimator:
         return self.classifier.road_class or int(self.cfg.default_class)
 
     def _ensure_model(self, speed: float, h: float) -> None:
+        key = self._model_key  # (h, class, speed band, mass) the model was last checked for
+        cls = self.cfg.road_class or self.classifier.road_class or self.cfg.default_class
+        if key is not None and h == key[0] and cls == key[1] and self.m_model == key[4]:
+            v = abs(speed)
+            if key[2] <= (v if v > 0.1 else 0.1) <= key[3]:
+                return
+        self._check_model(speed, h)
+        m, tol = self.model, self.cfg.speed_rebuild_tol
+        self._model_key = (h, cls, m.speed - tol * m.speed, m.speed + tol * m.speed, self.m_model)
+
+    def _check_model(self, speed: float, h: float) -> None:
         m = self.model
         cls = self.assumed_class
         gd = iso8608.class_psd_n0(max(cls, int(self.cfg.q_class_min)))
@@ -229,16 +255,13 @@ class SuspensionEstimator:
             self.kf.set_model(self.model.Phi, self.model.Q, self.model.H, self.R, Gamma=Gamma)
         else:
             self.kf.set_model(self.model.Phi, self.model.Q, self.model.H, self.R)
+        self.kf.stationary()
 
     def _filter(self, z: np.ndarray, rows) -> None:
         """Replay one recorded step: rows None = full update, else the rows used (may be none)."""
         kf = self.kf
         if rows is None:
-            if isinstance(kf, MMEKF):
-                kf.step(z)
-            else:
-                kf.predict()
-                kf.update(z)
+            kf.step(z)
         else:
             kf.predict_only()
             if len(rows):
@@ -262,10 +285,12 @@ class SuspensionEstimator:
                 break
         if snap is None or self._epoch_step > snap[1] + 1:
             return False
-        _, k0, x0, P0 = snap
+        _, k0, x0, P0, stationary = snap
         kf = self.kf
         kf.x, kf.P, kf.P_post = x0.copy(), P0.copy(), None
         kf.unfreeze()
+        if stationary:  # at the old model's fixed point: start at the new model's
+            kf.stationary()
         for k, z, rows in self._record:
             if k > k0:
                 self._filter(z, rows)
@@ -279,8 +304,9 @@ class SuspensionEstimator:
     def _keep_snapshots(self) -> None:
         """Snapshot the filter every snapshot_interval s; drop what no re-filter can use."""
         cfg, snaps = self.cfg, self._snaps
-        if not snaps or self.time - snaps[-1][0] >= cfg.snapshot_interval - 1e-12:
-            snaps.append((self.time, self._steps, self.kf.x.copy(), self.kf.P.copy()))
+        if snaps and self.time - snaps[-1][0] < cfg.snapshot_interval - 1e-12:
+            return
+        self._snap()
         old = self.time - cfg.refilter_span - cfg.refilter_lookback
         while len(snaps) > 1 and snaps[1][0] <= old:
             snaps.popleft()
@@ -293,13 +319,15 @@ class SuspensionEstimator:
         for frozen_time s: a noisy sensor never repeats itself, a stuck or disconnected one does."""
         last, same, lim = self._z_last, self._same_time, self.cfg.frozen_time
         ok = []
+        isfinite = math.isfinite
         for i, v in enumerate(vals):
             if v == last[i]:
                 same[i] += h
+                ok.append(isfinite(v) and same[i] < lim)
             else:
                 same[i] = 0.0
-            last[i] = v
-            ok.append(math.isfinite(v) and same[i] < lim)
+                last[i] = v
+                ok.append(isfinite(v))
         return ok
 
     def _channel_ok(self, z: np.ndarray) -> np.ndarray:
@@ -334,19 +362,13 @@ class SuspensionEstimator:
         valid = None if all_live else np.array(live)
 
         kf = self.kf
-        x_prev, P_prev, frozen = kf.x, kf.P, kf.frozen
+        x_prev, P_prev, st_prev = kf.x, kf.P, kf.stationary_now
         outliers = False  # some finite, live channel disagreed with the prediction
         if all_live:
-            if isinstance(kf, MMEKF):
-                kf.step(z)
-            else:
-                kf.predict()
-                kf.update(z)
+            kf.step(z)
             if kf.nis > cfg.outlier_nis:
                 # undo; find the outlying channels below and update with the others
-                kf.x, kf.P = x_prev, P_prev
-                if frozen:
-                    kf.frozen = True
+                kf.restore(x_prev, P_prev, st_prev)
                 valid = self._channel_ok(z)
                 outliers = True
         if valid is not None and not valid.all():
@@ -368,7 +390,7 @@ class SuspensionEstimator:
             self.reset_state()
             self._rejected_time = 0.0
             status = STATUS_REINIT
-        if not math.isfinite(float(kf.x.sum()) + float(kf.P.sum())):
+        if not math.isfinite(sum(kf.x.tolist()) + (0.0 if kf.frozen else float(kf.P.sum()))):
             self.reset_state()
             status = STATUS_REINIT
         if cfg.refilter_span > 0 and status != STATUS_REINIT:
@@ -403,19 +425,19 @@ class SuspensionEstimator:
                             self._refilter()
         if cfg.refilter_span > 0:
             self._keep_snapshots()
-        x = kf.x
+        x = kf.x.tolist()
         if status != STATUS_REINIT:
-            self.classifier.update(self.distance, float(x[IZR]), speed)
+            self.classifier.update(self.distance, x[IZR], speed)
         out = self.outputs
-        out["road_height_est"] = float(x[IZR])
-        out["road_velocity_est"] = float(x[IVR])
-        out["road_height_std"] = float(math.sqrt(max(kf.P[IZR, IZR], 0.0)))
-        out["z_s_est"] = float(x[IZS])
-        out["v_s_est"] = float(x[IVS])
-        out["z_u_est"] = float(x[IZU])
-        out["v_u_est"] = float(x[IVU])
-        out["susp_deflection_est"] = float(x[IZS] - x[IZU])
-        out["tire_deflection_est"] = float(x[IZU] - x[IZR])
+        out["road_height_est"] = x[IZR]
+        out["road_velocity_est"] = x[IVR]
+        out["road_height_std"] = math.sqrt(max(float(kf.P[IZR, IZR]), 0.0))
+        out["z_s_est"] = x[IZS]
+        out["v_s_est"] = x[IVS]
+        out["z_u_est"] = x[IZU]
+        out["v_u_est"] = x[IVU]
+        out["susp_deflection_est"] = x[IZS] - x[IZU]
+        out["tire_deflection_est"] = x[IZU] - x[IZR]
         out["sprung_mass_est"] = float(self.mass_est.mass if self.mass_est is not None
                                        else cfg.m_s_nominal)
         out["road_class_est"] = int(self.classifier.road_class)

@@ -22,6 +22,6 @@ class SuspensionEstimator(ContractSlave):
 
     def step(self, t: float, h: float) -> None:
         # the measurements have no range in the contract: the core rejects non-finite ones (status 1)
-        out = self.core.step(self.acc_sprung, self.acc_unsprung, self.susp_deflection, self.vehicle_speed, h)
-        for name, value in out.items():
-            setattr(self, name, value)
+        # the outputs are plain attributes of this object (the contract's names)
+        self.__dict__.update(self.core.step(self.acc_sprung, self.acc_unsprung, self.susp_deflection,
+                                            self.vehicle_speed, h))

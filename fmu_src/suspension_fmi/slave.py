@@ -40,6 +40,8 @@ class ContractSlave(Fmi2Slave):
         self.contract: tuple[Var, ...] = CONTRACTS[type(self).__name__]
         self._refusal: str | None = None
         self._checked_inputs: list[Var] = []
+        # value reference -> attribute name, per type: the fast accessors below
+        self._names: dict[str, dict[int, str]] = {t: {} for t in _TYPES}
         for var in self.contract:
             setattr(self, var.name, _ZERO[var.type] if var.start is None else var.start)
             if var.causality == "parameter":
@@ -51,6 +53,7 @@ class ContractSlave(Fmi2Slave):
             self.register_variable(_TYPES[var.type](
                 var.name, causality=getattr(Fmi2Causality, var.causality), variability=variability,
                 description=var.description, start=var.start))
+            self._names[var.type][len(self.vars) - 1] = var.name
             if var.causality == "input" and var.type == "Real" and var.allowed is not None:
                 self._checked_inputs.append(var)
 
@@ -72,6 +75,35 @@ class ContractSlave(Fmi2Slave):
         return out
 
     # -- FMI --------------------------------------------------------------------------------
+    # pythonfmu's accessors look up each variable object, check its type and call its getter
+    # lambda; these read the attribute directly (same values, same TypeError for a wrong type).
+    def _get(self, kind: str, cast, vrs: list[int]) -> list:
+        names = self._names[kind]
+        try:
+            return [cast(getattr(self, names[vr])) for vr in vrs]
+        except KeyError as e:
+            raise TypeError(f"Variable with valueReference={e.args[0]} is not of type {kind}!") from None
+
+    def _set(self, kind: str, vrs: list[int], values: list) -> None:
+        names = self._names[kind]
+        for vr, value in zip(vrs, values):
+            name = names.get(vr)
+            if name is None:
+                raise TypeError(f"Variable with valueReference={vr} is not of type {kind}!")
+            setattr(self, name, value)
+
+    def get_real(self, vrs):
+        return self._get("Real", float, vrs)
+
+    def get_integer(self, vrs):
+        return self._get("Integer", int, vrs)
+
+    def set_real(self, vrs, values):
+        self._set("Real", vrs, values)
+
+    def set_integer(self, vrs, values):
+        self._set("Integer", vrs, values)
+
     def log(self, msg: str, status: Fmi2Status = Fmi2Status.ok, category: str | None = None, debug=None):
         # FMI 2.0 loggers take the message as a printf format: a literal % must be doubled
         super().log(msg.replace("%", "%%"), status, category)
