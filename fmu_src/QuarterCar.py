@@ -20,9 +20,9 @@ class QuarterCar(ContractSlave):
 
     def _output(self) -> None:
         p = self.plant
-        self.z_s, self.v_s, self.z_u, self.v_u = (float(x) for x in p.x)
-        self.acc_sprung, self.acc_unsprung, self.susp_deflection = (float(x) for x in p.measured)
-        self.acc_sprung_true, self.acc_unsprung_true = (float(x) for x in p.acc_true)
+        self.z_s, self.v_s, self.z_u, self.v_u = p.x.tolist()
+        self.acc_sprung, self.acc_unsprung, self.susp_deflection = p.measured
+        self.acc_sprung_true, self.acc_unsprung_true = p.acc_true
         self.tire_deflection = p.tire_deflection
         self.tire_force = p.tire_force
 

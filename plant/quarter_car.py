@@ -68,17 +68,19 @@ class QuarterCar:
         self.rng = np.random.default_rng(noise_seed)
         self.x = np.zeros(4)
         self.road = 0.0
-        self.acc_true = np.zeros(2)  # sprung, unsprung
-        self.measured = np.zeros(3)  # acc_sprung, acc_unsprung, deflection
+        self.acc_true = (0.0, 0.0)  # sprung, unsprung (m/s^2)
+        self.measured = (0.0, 0.0, 0.0)  # acc_sprung, acc_unsprung (m/s^2), deflection (m)
         self._key: tuple[float, float] | None = None
         self._A = self._B = self._Ad = self._Bd = None
+        self._noise: list[list[float]] = []
+        self._noise_i = 0
 
     def settle(self, road_height: float) -> None:
         """Put the car at rest in static equilibrium on a road at ``road_height`` (m)."""
         self.x = np.array([road_height, 0.0, road_height, 0.0])
         self.road = road_height
-        self.acc_true = np.zeros(2)
-        self.measured = np.zeros(3)
+        self.acc_true = (0.0, 0.0)
+        self.measured = (0.0, 0.0, 0.0)
 
     def _matrices(self, m_s: float, h: float) -> None:
         if self._key != (m_s, h):
@@ -88,22 +90,32 @@ class QuarterCar:
 
     def step(self, road_height: float, h: float, m_s: float | None = None) -> None:
         """Advance by h seconds with the road held at ``road_height`` (m)."""
-        self._matrices(self.vehicle.m_s if m_s is None else m_s, h)
+        key = (self.vehicle.m_s if m_s is None else m_s, h)
+        if self._key != key:
+            self._matrices(*key)
+            A, B = self._A, self._B
+            self._rows = (A[1].tolist(), float(B[1]), A[3].tolist(), float(B[3]))
         x0 = self.x
-        self.x = self._Ad @ x0 + self._Bd * road_height
+        x = self._Ad @ x0 + self._Bd * road_height
+        self.x = x
         self.road = road_height
+        z_s, v_s, z_u, v_u = x.tolist()
         if self.acc_sampling == 1:
-            self.acc_true = np.array([self.x[1] - x0[1], self.x[3] - x0[3]]) / h
+            acc = ((v_s - float(x0[1])) / h, (v_u - float(x0[3])) / h)
         else:
-            xdot = self._A @ self.x + self._B * road_height
-            self.acc_true = np.array([xdot[1], xdot[3]])
+            r1, b1, r3, b3 = self._rows
+            acc = (r1[0] * z_s + r1[1] * v_s + r1[2] * z_u + r1[3] * v_u + b1 * road_height,
+                   r3[0] * z_s + r3[1] * v_s + r3[2] * z_u + r3[3] * v_u + b3 * road_height)
+        self.acc_true = acc
+        # the noise is drawn in blocks: the same numbers as one draw of 3 per step
+        if self._noise_i >= len(self._noise):
+            self._noise = self.rng.standard_normal((256, 3)).tolist()
+            self._noise_i = 0
+        e = self._noise[self._noise_i]
+        self._noise_i += 1
         n = self.noise
-        e = self.rng.standard_normal(3)
-        self.measured = np.array([
-            self.acc_true[0] + n.acc_sprung * e[0],
-            self.acc_true[1] + n.acc_unsprung * e[1],
-            self.x[0] - self.x[2] + n.deflection * e[2],
-        ])
+        self.measured = (acc[0] + n.acc_sprung * e[0], acc[1] + n.acc_unsprung * e[1],
+                         z_s - z_u + n.deflection * e[2])
 
     @property
     def tire_deflection(self) -> float:
