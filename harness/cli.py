@@ -4,10 +4,12 @@
 writes ``<out>/<scenario>.csv`` and PNG plots (default ``results/<scenario>/``).
 
 ``python -m harness paper [--seeds N] [--duration S] [--warmup S] [--step S] [--classes B,C,D]
-[--workers N] [--out DIR] [--study10ms] [--dist DIR]``: the papers' studies through the FMUs
-(harness/paper.py); prints the tables and targets as markdown, writes ``<out>/paper_tables.md``,
-``<out>/paper_runs.json`` and PNG plots (default ``results/paper/``). Exits 1 if any run failed
-(after reporting it and finishing the others).
+[--workers N] [--out DIR] [--study10ms] [--dask] [--scheduler ADDRESS] [--dist DIR]``: the papers'
+studies through the FMUs (harness/paper.py; with ``--dask`` or ``--scheduler`` on Dask through the
+sweep runner, harness/sweep.py, each worker reusing its FMU instances); prints the tables and
+targets as markdown, writes ``<out>/paper_tables.md``, ``<out>/paper_runs.json`` and PNG plots
+(default ``results/paper/``). Exits 1 if any run failed (after reporting it and finishing the
+others).
 
 ``python -m harness sweep <file> [--workers N] [--scheduler ADDRESS] [--out DIR] [--dist DIR]
 [--skip-failed] [--limit N]``: a grid or Monte Carlo study on Dask (harness/sweep.py); one row of
@@ -60,7 +62,7 @@ def _paper(args: argparse.Namespace) -> int:
 
     study = PaperStudy(seeds=args.seeds, duration=args.duration, warmup=args.warmup, step=args.step,
                        classes=parse_classes(args.classes), workers=args.workers, study10ms=args.study10ms,
-                       class_seeds=args.class_study,
+                       class_seeds=args.class_study, dask=args.dask, scheduler=args.scheduler,
                        dist=Path(args.dist), out=Path(args.out))
     study.run(progress=not args.quiet)
     files = study.write()
@@ -111,6 +113,9 @@ def main(argv: list[str] | None = None) -> int:
                        help="also the Table-2 study at 10 ms with acc_sampling 0 and 1")
     paper.add_argument("--class-study", type=int, default=0, metavar="N",
                        help="also the online-class study, ISO A-E at 10, 20, 30 m/s, with N seeds (default 0: off)")
+    paper.add_argument("--dask", action="store_true",
+                       help="run on a Dask LocalCluster of --workers processes (the sweep runner: FMUs reused per worker)")
+    paper.add_argument("--scheduler", metavar="ADDRESS", help="run on the Dask cluster at ADDRESS")
     paper.add_argument("--dist", default=str(DIST), help="folder with the FMUs (default dist/)")
     paper.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     paper.set_defaults(func=_paper)

@@ -30,8 +30,10 @@
 Seed index i (1..N) drives the road (``ISORoad.seed`` = i) and the sensor noise
 (``QuarterCar.noise_seed`` = 1000 + i); every class and mass uses the same seeds. Runs are
 independent and go to a pool of ``spawn`` worker processes, each building its own
-``CoSimulation``; a run that fails (an FMU refusing, or anything else) is reported with its reason
-and the study goes on. Means ± standard deviations (ddof 1) are over the seeds that completed.
+``CoSimulation`` (with ``--dask`` or ``--scheduler``: to Dask workers through
+``harness.sweep.run_specs``, each keeping its ``CoSimulation`` and resetting it between runs); a
+run that fails (an FMU refusing, or anything else) is reported with its reason and the study
+goes on. Means ± standard deviations (ddof 1) are over the seeds that completed.
 
 The command reports, it never tunes: the targets of the issue are checked and marked PASS/MISS.
 """
@@ -472,6 +474,8 @@ class PaperStudy:
     workers: int = 2
     study10ms: bool = False
     class_seeds: int = 0  # seeds of the online-class study (d); 0 = not run
+    dask: bool = False  # run on Dask (harness.sweep.run_specs): a LocalCluster of ``workers`` or ``scheduler``
+    scheduler: str | None = None
     dist: Path = DIST
     out: Path = OUT
     results: list[dict] = field(default_factory=list)
@@ -519,7 +523,12 @@ class PaperStudy:
     def run(self, progress: bool = True) -> PaperStudy:
         self.check()
         t0 = time.perf_counter()
-        self.results = run_all(self.specs(), self.workers, progress)
+        if self.dask or self.scheduler:
+            from .sweep import run_specs
+
+            self.results = run_specs(self.specs(), self.workers, self.scheduler, progress)
+        else:
+            self.results = run_all(self.specs(), self.workers, progress)
         self.wall_s = time.perf_counter() - t0
         return self
 

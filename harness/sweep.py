@@ -360,9 +360,55 @@ def _worker_state():
 
 def close_worker() -> None:
     """Close this process's (thread's) kept CoSimulations, removing their extracted FMUs."""
-    if hasattr(_LOCAL, "sims"):
-        _LOCAL.sims.close()
-        del _LOCAL.sims
+    for name in ("sims", "paper_sims"):
+        if hasattr(_LOCAL, name):
+            getattr(_LOCAL, name).close()
+            delattr(_LOCAL, name)
+
+
+def _run_spec(item: tuple[int, RunSpec]) -> tuple[int, dict]:
+    """``paper.run_one`` in a worker, on the worker's kept CoSimulations (timed per instance)."""
+    if not hasattr(_LOCAL, "paper_sims"):
+        _LOCAL.paper_sims = paper.Simulations()
+    return item[0], paper.run_one(item[1], sims=_LOCAL.paper_sims)
+
+
+def run_specs(specs: Sequence[RunSpec], workers: int = 2, scheduler: str | None = None,
+              progress: bool = True, log: Callable[[str], None] | None = None) -> list[dict]:
+    """``harness.paper`` runs (``run_one`` results, in the order of ``specs``) on Dask: a
+    LocalCluster of ``workers`` processes or the cluster at ``scheduler``; each worker reuses its
+    CoSimulations. What ``python -m harness paper --dask`` runs."""
+    from distributed import Client
+    from tqdm import tqdm
+
+    results: list[dict | None] = [None] * len(specs)
+    cluster = None if scheduler else local_cluster(max(1, min(workers, len(specs))))
+    client = Client(scheduler or cluster)
+    try:
+        with tqdm(total=len(specs), unit="run", desc="paper", disable=not progress or None) as bar:
+            say = log or bar.write
+
+            def on_result(item, value) -> None:
+                i, res = value
+                results[i] = res
+                if not res["ok"]:
+                    say(f"failed: {res['name']}: {res['error']}")
+                bar.update(1)
+
+            def on_error(item, message: str) -> tuple[int, dict]:
+                i, spec = item
+                return i, {"spec": asdict(spec), "name": spec.name, "ok": False, "wall_s": 0.0, "error": message}
+
+            execute(list(enumerate(specs)), _run_spec, on_result, client, on_error)
+    finally:
+        try:
+            client.run(close_worker)
+        except Exception:  # noqa: BLE001 - workers gone: nothing left to close
+            pass
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    return results
 
 
 def run_task(task: Task) -> list[dict]:
@@ -534,11 +580,12 @@ def pending_tasks(sweep: Sweep, dist: Path | str, done: set[str]) -> list[Task]:
 
 def local_cluster(workers: int):
     """A Dask LocalCluster of ``workers`` processes with one thread each (and one thread for
-    the numerical libraries), without a dashboard."""
+    the numerical libraries), without a dashboard (its HTTP server on a free port, so that
+    several clusters can run side by side)."""
     from distributed import LocalCluster
 
     return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, env=dict(paper.THREAD_ENV),
-                        dashboard_address=None)
+                        dashboard_address=None, scheduler_kwargs={"dashboard_address": ":0"})  # any free port
 
 
 def execute(tasks: Sequence, fn: Callable, on_result: Callable, client=None,

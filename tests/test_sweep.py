@@ -146,3 +146,19 @@ def test_sweep_file_errors_name_the_key(tmp_path, dist):
     proc = subprocess.run([sys.executable, "-m", "harness", "sweep", "no_such_sweep"], capture_output=True,
                           text=True, cwd=tmp_path, timeout=60)
     assert proc.returncode == 1 and proc.stderr.count("\n") == 1 and "no_such_sweep" in proc.stderr
+
+
+def test_paper_runs_on_dask_reuse_the_workers_fmus_with_the_same_numbers(dist, cluster):
+    from harness.sweep import run_specs
+
+    specs = [paper.RunSpec("table2", 3, s, 0.5, 0.1, 1e-3, str(dist), mass=590.0) for s in (1, 2, 3)]
+    specs.insert(1, paper.RunSpec("table2", 9, 1, 0.5, 0.1, 1e-3, str(dist)))  # no ISO class 9
+    got = run_specs(specs, scheduler=cluster[0].scheduler_address, progress=False, log=lambda s: None)
+    assert [r["ok"] for r in got] == [True, False, True, True]
+    assert "ISORoad" in got[1]["error"] and "road_class" in got[1]["error"]
+    fresh = paper.run_one(specs[3])["estimators"]
+    assert got[3]["estimators"].keys() == fresh.keys()
+    for inst, scores in fresh.items():
+        for k, v in scores.items():
+            assert got[3]["estimators"][inst][k] == v or (math.isnan(v) and math.isnan(got[3]["estimators"][inst][k]))
+    assert set(got[3]["timing"]["do_step_us"]) == {e.instance for e in paper.ESTIMATORS} | {"ISORoad", "QuarterCar"}
