@@ -65,6 +65,14 @@ import numpy as np
 from scipy.linalg import expm
 
 
+def _svf_step(r0, r1, r2, bd, x, u):
+    """x <- Ad x + Bd u for the 3-state filter, Ad given by its rows (plain floats)."""
+    x0, x1, x2 = x
+    return (r0[0] * x0 + r0[1] * x1 + r0[2] * x2 + bd[0] * u,
+            r1[0] * x0 + r1[1] * x1 + r1[2] * x2 + bd[1] * u,
+            r2[0] * x0 + r2[1] * x1 + r2[2] * x2 + bd[2] * u)
+
+
 class StateVariableFilter:
     """Discrete exact (ZOH) realisation of F(s) above for one scalar signal.
 
@@ -155,8 +163,9 @@ class MassEstimator:
         self.estimate_damping = bool(estimate_damping)
         self.m_nominal = float(m_nominal)
         self.svf = StateVariableFilter(f_hp, f_lp)
-        self.xa = np.zeros(3)  # filter states on a_s
-        self.xd = np.zeros(3)  # filter states on d
+        self.xa = (0.0, 0.0, 0.0)  # filter states on a_s
+        self.xd = (0.0, 0.0, 0.0)  # filter states on d
+        self._svf_h = None
         # Initial covariance: a +-100 % prior on m (and c) at unit regressor scale; the
         # regressor's own size (F[a_s]^2 ~ 0.1..10) makes this prior weak within ~0.1 s.
         if self.estimate_damping:
@@ -179,7 +188,7 @@ class MassEstimator:
         self.resets = 0
         # step response of the filter since the last restart (None when decayed), and the
         # deflection (m) at the restart: s F[d] of the restarted filter holds d0 * S[2] extra
-        self._S: np.ndarray | None = None
+        self._S: tuple[float, float, float] | None = None
         self._S_left = 0.0  # s until S is negligible (8 high-pass time constants)
         self._d0 = 0.0
         # since-last-change least squares (weighted sums), see the module doc
@@ -199,7 +208,8 @@ class MassEstimator:
         estimate until there is enough excitation)."""
         if self.estimate_damping or self._spp <= 0.0:
             return self.mass
-        return float(np.clip(self._spy / self._spp, *self.m_bounds))
+        lo, hi = self.m_bounds
+        return min(max(self._spy / self._spp, lo), hi)
 
     def mass_slow_std(self, h: float) -> float:
         """Standard error (kg) of ``mass_slow``; inf until 5 independent samples are in."""
@@ -225,12 +235,15 @@ class MassEstimator:
         for a rejected or missing measurement): the state-variable filters run on, but the
         regression is not updated for it nor for ``guard`` s after it (the filters' memory of
         the substitution, a few low-pass time constants)."""
-        Ad, Bd = self.svf.discretise(h)
-        self.xa = Ad @ self.xa + Bd * acc_sprung
-        self.xd = Ad @ self.xd + Bd * deflection
+        if h != self._svf_h:  # the filter matrices as plain floats (3 x 3 in scalar arithmetic)
+            Ad, Bd = self.svf.discretise(h)
+            self._svf_ad, self._svf_bd, self._svf_h = tuple(Ad.tolist()), tuple(Bd.tolist()), h
+        (r0, r1, r2), bd = self._svf_ad, self._svf_bd
+        self.xa = _svf_step(r0, r1, r2, bd, self.xa, acc_sprung)
+        self.xd = _svf_step(r0, r1, r2, bd, self.xd, deflection)
         if self._S is not None:
             self._S_left -= h
-            self._S = Ad @ self._S + Bd if self._S_left > 0.0 else None
+            self._S = _svf_step(r0, r1, r2, bd, self._S, 1.0) if self._S_left > 0.0 else None
         self.samples += 1
         if not use:
             self._guard = self.guard
@@ -252,7 +265,7 @@ class MassEstimator:
                 dm = self._spe / self._sff  # kg
                 if (abs(dm) > self.reset_ratio * self.mass
                         and (not warm or dm * dm * self._sff > self.reset_z ** 2 * self._s2)):
-                    self._restart(acc_sprung, deflection, Bd)
+                    self._restart(acc_sprung, deflection, self._svf_bd)
                     fa, phi, y = self._regression()
         if self.estimate_damping:
             self.rls.update(phi, y)
@@ -271,19 +284,19 @@ class MassEstimator:
     def _regression(self) -> tuple[float, np.ndarray | None, float]:
         """F[a_s] (m/s^2), phi (2-parameter case, else None) and y (N) of eq. 15 from the
         filter states, the restart's step term removed from s F[d]."""
-        fa, fd, fdd = float(self.xa[1]), float(self.xd[1]), float(self.xd[2])
+        fa, fd, fdd = self.xa[1], self.xd[1], self.xd[2]
         if self._S is not None:
-            fdd -= self._d0 * float(self._S[2])
+            fdd -= self._d0 * self._S[2]
         if self.estimate_damping:
             return fa, np.array([fa, fdd]), -self.k_s * fd
         return fa, None, -self.k_s * fd - self.c_s * fdd
 
-    def _restart(self, acc_sprung: float, deflection: float, Bd: np.ndarray) -> None:
+    def _restart(self, acc_sprung: float, deflection: float, Bd: tuple[float, float, float]) -> None:
         """A detected payload change: filters restarted at this sample (zero state, then this
         sample's input), covariance reset, since-change least squares and detector restarted."""
-        self.xa = Bd * acc_sprung
-        self.xd = Bd * deflection
-        self._S = Bd.copy()
+        self.xa = tuple(b * acc_sprung for b in Bd)
+        self.xd = tuple(b * deflection for b in Bd)
+        self._S = tuple(Bd)
         self._S_left = 8.0 / self.svf.wh
         self._d0 = float(deflection)
         self.rls.F = self.F0.copy()
