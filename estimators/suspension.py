@@ -94,6 +94,10 @@ class EstimatorConfig:
     # Re-initialise when every finite channel has been rejected for this long (a diverged
     # filter); a burst of bad samples on some channels is predicted through instead.
     reinit_after: float = 0.2  # s
+    # s of an outlier streak on a channel during which its gate uses at most the stationary
+    # innovation variance; after it the actual (grown) variance, so that a channel the filter
+    # itself has drifted away from is taken back
+    gate_hold: float = 0.1
     frozen_time: float = 0.05  # s a channel may repeat its value bit for bit before it is rejected
     # The road filter starts at the stationary covariance of its model (DARE), again whenever the
     # model is rebuilt or the filter re-initialised, and keeps its gain frozen there (kalman.py);
@@ -177,6 +181,7 @@ class SuspensionEstimator:
         self.time = 0.0
         self.distance = 0.0
         self._rejected_time = 0.0
+        self._outlier_time = [0.0] * self.R.shape[0]  # s of the current outlier streak per channel
         self._z_last = [math.nan] * self.R.shape[0]
         self._same_time = [0.0] * self.R.shape[0]
         self._last_rebuild = -math.inf
@@ -335,7 +340,8 @@ class SuspensionEstimator:
 
         S_ii is at most the stationary innovation variance of the model: while the filter
         predicts through rejected samples its own uncertainty grows, and the gate must not open
-        because of that (a +100 g burst on the wheel passed after three rejected samples). When
+        because of that (a +100 g burst on the wheel passed after three rejected samples), for
+        the first ``gate_hold`` s of an outlier streak on the channel. When
         the joint NIS failed but no channel does on its own, the worst channel is left out."""
         kf = self.kf
         xp = kf.F @ kf.x
@@ -343,7 +349,8 @@ class SuspensionEstimator:
         y = z - kf.H @ xp
         S = np.einsum("ij,jk,ik->i", kf.H, Pp, kf.H) + np.diag(kf.R)
         if kf._ss_gain is not None:
-            S = np.minimum(S, np.diag(kf._ss_gain[1]))
+            hold = np.array(self._outlier_time) < self.cfg.gate_hold
+            S = np.where(hold, np.minimum(S, np.diag(kf._ss_gain[1])), S)
         ratio = y * y / S
         ok = ratio <= self.cfg.outlier_nis
         if ok.all():
@@ -392,11 +399,18 @@ class SuspensionEstimator:
                     kf.x, kf.P = x_pred, P_pred
                     valid[:] = False
         rejected_all = outliers and not valid.any()
+        if outliers or any(self._outlier_time):
+            ot = self._outlier_time
+            for i in range(len(ot)):
+                ot[i] = ot[i] + h if outliers and not valid[i] else 0.0
         rows = None if valid is None or valid.all() else np.flatnonzero(valid)
         if valid is None or valid.all():
             valid = (True, True, True)
         self._rejected_time = self._rejected_time + h if rejected_all else 0.0
-        if self._rejected_time >= cfg.reinit_after:
+        # a channel the filter has disagreed with for reinit_after s while the others agree: the
+        # filter has drifted (e.g. after accepting the first samples of a burst), not the sensor
+        if self._rejected_time >= cfg.reinit_after or max(self._outlier_time) >= cfg.reinit_after:
+            self._outlier_time = [0.0] * len(self._outlier_time)
             # every finite channel disagrees with the prediction for reinit_after s: diverged
             self.reset_state()
             self._rejected_time = 0.0
