@@ -316,8 +316,37 @@ class MMEKF(LinearKF):
             self._L = np.linalg.solve(D.T @ RI @ D + self.W, D.T @ RI)
         return self._L
 
+    def _freeze(self) -> None:
+        super()._freeze()
+        if self.frozen:
+            # the frozen MME&KF step is linear in (x_{k-1}, z_k) too:
+            # x_p = (F - Gamma L H F) x + Gamma L z,  y = z - H x_p - E d,  x_k = x_p + K y,
+            # with d = L (z - H F x); rows: x_k, the whitened innovation L_S^-1 y, and d
+            n, m = self.dim_x, self.dim_z
+            L, G, E, K = self._gain(), self.Gamma, self.E, self.K
+            HF = self.H @ self.F
+            Ax, Az = self.F - G @ L @ HF, G @ L
+            Cx, Cz = -self.H @ Ax + E @ L @ HF, np.eye(m) - self.H @ Az - E @ L
+            Li = np.linalg.inv(np.linalg.cholesky(self.S))
+            M = np.zeros((n + m + 1, n + m))
+            M[:n, :n], M[:n, n:] = Ax + K @ Cx, Az + K @ Cz
+            M[n:n + m, :n], M[n:n + m, n:] = Li @ Cx, Li @ Cz
+            M[n + m, :n], M[n + m, n:] = -(L @ HF)[0], L[0]
+            self._M_mme = M
+
     def step(self, z: np.ndarray) -> None:
         """One MME&KF step with measurement z at k (eq. 19 for d_k, then eq. 21)."""
+        if self.frozen:
+            n, m, buf = self.dim_x, self.dim_z, self._buf
+            buf[:n] = self.x
+            buf[n:] = z
+            v = self._M_mme @ buf
+            self.x = v[:n]
+            w = v[n:n + m]
+            self.nis = float(w @ w)
+            self.d = v[n + m:]
+            self.P = self._P_post_ss
+            return
         x0 = self.F @ self.x
         self.d = self._gain() @ (z - self.H @ x0)
         self.predict()
