@@ -16,7 +16,9 @@ Memory: ``--memory-runs`` short runs on the cluster; every row records the resid
 its worker after the run (``worker_rss_mb``), and the script prints, per worker, the RSS after
 its 5th run and after its last one.
 
-Prints the numbers and writes JSON (default benchmarks/sweep.json). The machine's load is not
+Also the median µs per step of a run in each phase: if a run steps as fast in a worker as in
+this process, the ratio's shortfall from the number of workers is the machine's (free cores),
+not the runner's. Prints the numbers and writes JSON (default benchmarks/sweep.json). The machine's load is not
 controlled: other processes on its cores lower the parallel figure.
 """
 from __future__ import annotations
@@ -76,7 +78,8 @@ def main() -> dict:
     serial_s, rows = _timed(tasks)
     close_worker()
     bad = [r["error"] for r in rows if not r["ok"]]
-    res["serial"] = {"wall_s": serial_s, "runs_per_min": 60 * args.runs / serial_s, "failed": bad}
+    res["serial"] = {"wall_s": serial_s, "runs_per_min": 60 * args.runs / serial_s, "failed": bad,
+                     "us_per_step_median": _median_step(rows)}
     print(f"  {serial_s:.1f} s, {60 * args.runs / serial_s:.2f} runs/min", flush=True)
 
     print(f"dask: the same runs on a LocalCluster of {args.workers} workers ...", flush=True)
@@ -92,7 +95,7 @@ def main() -> dict:
         par_s, rows = _timed(tasks, client)
         bad = [r["error"] for r in rows if not r["ok"]]
         res["parallel"] = {"wall_s": par_s, "runs_per_min": 60 * args.runs / par_s, "failed": bad,
-                           "runs_per_worker": _count(rows)}
+                           "runs_per_worker": _count(rows), "us_per_step_median": _median_step(rows)}
         res["ratio"] = serial_s / par_s
         print(f"  {par_s:.1f} s, {60 * args.runs / par_s:.2f} runs/min; cluster start {res['cluster_start_s']:.1f} s "
               f"(+ warm-up {res['cluster_warm_s'] - res['cluster_start_s']:.1f} s)", flush=True)
@@ -113,7 +116,8 @@ def main() -> dict:
         runs = sorted(by_run)
         at5 = by_run.get(5 + runs[0] - 1)  # the worker's 5th run of this batch
         d = {"runs": len(runs), "rss_mb_run5": at5, "rss_mb_last": by_run[runs[-1]],
-             "growth_mb": by_run[runs[-1]] - at5 if at5 is not None else None}
+             "growth_mb": by_run[runs[-1]] - at5 if at5 is not None else None,
+             "rss_mb_by_run": [round(by_run[k], 1) for k in runs]}
         res["memory"]["per_worker"][str(w)] = d
     res["load_avg_end"] = os.getloadavg()
 
@@ -122,6 +126,8 @@ def main() -> dict:
     print(f"| serial, {args.runs} x {args.duration:g} s | {serial_s:.1f} s ({res['serial']['runs_per_min']:.2f} runs/min) |")
     print(f"| {args.workers} Dask workers, same runs | {par_s:.1f} s ({res['parallel']['runs_per_min']:.2f} runs/min) |")
     print(f"| ratio (target >= 1.8) | {res['ratio']:.2f} |")
+    print(f"| µs per step of a run, median: serial / in a worker | {res['serial']['us_per_step_median']:.0f} / "
+          f"{res['parallel']['us_per_step_median']:.0f} |")
     print(f"| cluster start-up | {res['cluster_start_s']:.1f} s |")
     for w, d in res["memory"]["per_worker"].items():
         print(f"| worker {w}: RSS after run 5 -> after run {d['runs']} | {d['rss_mb_run5']:.1f} -> "
@@ -131,6 +137,12 @@ def main() -> dict:
     args.json.write_text(json.dumps(res, indent=2) + "\n")
     print(f"\nwrote {args.json}")
     return res
+
+
+def _median_step(rows: list[dict]) -> float:
+    import numpy as np
+
+    return float(np.median([r["us_per_step"] for r in rows if r["ok"] and r["estimator"] == paper.ESTIMATORS[0].instance]))
 
 
 def _count(rows: list[dict]) -> dict:

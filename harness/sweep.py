@@ -70,20 +70,23 @@ co-simulation, ``worker`` (process id), ``worker_run`` (runs done by that proces
 ``class_right``, ``status_nonzero``; see ``harness.metrics``).
 
 Execution follows FMPy's parameter-variation example: each worker process extracts the FMUs
-once and keeps one CoSimulation (``harness.paper.Simulations``), resetting it (``fmi2Reset``)
-between runs. The workers are separate processes with one thread each (all FMUs of a process
+once (into its Dask worker directory, which Dask removes) and keeps one CoSimulation
+(``harness.paper.Simulations``), resetting it (``fmi2Reset``) between runs, with a garbage
+collection after each run so that its memory stays flat. The workers are separate processes with one thread each (all FMUs of a process
 share one Python interpreter), by default a Dask ``LocalCluster``; ``scheduler`` uses an existing
 cluster, whose workers must see the FMU folder and have the project installed. ``workers = 0``
 runs in this process, without Dask.
 """
 from __future__ import annotations
 
+import gc
 import hashlib
 import itertools
 import json
 import math
 import os
 import re
+import tempfile
 import threading
 import time
 import tomllib
@@ -350,27 +353,43 @@ def _estimators(src: str, data: dict) -> tuple[Estimator, ...]:
 # one run (in a worker process)
 # --------------------------------------------------------------------------------------------------
 _LOCAL = threading.local()  # per worker thread: its CoSimulations and the number of runs done
+_KEPT: list[paper.Simulations] = []  # every thread's, so that close_worker (run in any thread) finds them
 
 
-def _worker_state():
-    if not hasattr(_LOCAL, "sims"):
-        _LOCAL.sims, _LOCAL.runs = paper.Simulations(instrument=False), 0
-    return _LOCAL
+def _in_dask_worker_dir() -> None:
+    """In a Dask worker, extract the FMUs into the worker's own directory, which Dask removes
+    even when the worker is killed mid-run (else they would be left in the system's temp folder)."""
+    try:
+        from distributed import get_worker
+
+        tempfile.tempdir = get_worker().local_directory
+    except (ImportError, ValueError, AttributeError):
+        pass  # not in a Dask worker
+
+
+def _kept(name: str, instrument: bool) -> paper.Simulations:
+    sims = getattr(_LOCAL, name, None)
+    if sims is None or not any(s is sims for s in _KEPT):  # none yet, or closed by close_worker
+        _in_dask_worker_dir()
+        sims = paper.Simulations(instrument=instrument)
+        setattr(_LOCAL, name, sims)
+        _KEPT.append(sims)
+    return sims
 
 
 def close_worker() -> None:
-    """Close this process's (thread's) kept CoSimulations, removing their extracted FMUs."""
-    for name in ("sims", "paper_sims"):
-        if hasattr(_LOCAL, name):
-            getattr(_LOCAL, name).close()
-            delattr(_LOCAL, name)
+    """Close this process's kept CoSimulations (every thread's), removing their extracted FMUs.
+    Call it when no run is going on in the process."""
+    while _KEPT:
+        _KEPT.pop().close()
+    _LOCAL.__dict__.clear()
 
 
 def _run_spec(item: tuple[int, RunSpec]) -> tuple[int, dict]:
     """``paper.run_one`` in a worker, on the worker's kept CoSimulations (timed per instance)."""
-    if not hasattr(_LOCAL, "paper_sims"):
-        _LOCAL.paper_sims = paper.Simulations()
-    return item[0], paper.run_one(item[1], sims=_LOCAL.paper_sims)
+    res = paper.run_one(item[1], sims=_kept("paper_sims", True))
+    gc.collect()
+    return item[0], res
 
 
 def run_specs(specs: Sequence[RunSpec], workers: int = 2, scheduler: str | None = None,
@@ -416,20 +435,24 @@ def run_task(task: Task) -> list[dict]:
     An estimator instance that refuses is recorded as failed and the point run again without it."""
     import psutil
 
-    state = _worker_state()
+    sims = _kept("sims", False)
     failed: dict[str, str] = {}
     todo = list(task.estimators)
     res: dict = {}
     while todo:
-        res = paper.run_one(task.spec, tuple(todo), state.sims)
+        res = paper.run_one(task.spec, tuple(todo), sims)
         if res["ok"] or len(todo) == 1 or res.get("instance") not in {e.instance for e in todo}:
             break
         failed[res["instance"]] = res["error"]
         todo = [e for e in todo if e.instance != res["instance"]]
-    state.runs += 1
+    # What a run leaves in reference cycles (e.g. the slave objects an fmi2Reset replaces) is
+    # freed now rather than when the collector's object-count thresholds next trigger: without
+    # this the resident memory of a worker wanders upwards by megabytes per run.
+    gc.collect()
+    _LOCAL.runs = getattr(_LOCAL, "runs", 0) + 1
     timing = res.get("timing", {})
     extra = {"wall_s": res.get("wall_s", math.nan), "us_per_step": timing.get("us_per_step", math.nan),
-             "worker": os.getpid(), "worker_run": state.runs,
+             "worker": os.getpid(), "worker_run": _LOCAL.runs,
              "worker_rss_mb": psutil.Process().memory_info().rss / 2**20}
     rows = []
     for e, key in zip(task.estimators, task.keys):
@@ -479,7 +502,8 @@ class PartWriter:
         self.rows: list[dict] = []
         self.files: list[Path] = []
         self._last = time.monotonic()
-        self._stamp = f"{time.strftime('%Y%m%dT%H%M%S')}-{os.getpid()}"
+        # names sort in the order written (read_results keeps the last row of a key)
+        self._stamp = f"{time.strftime('%Y%m%dT%H%M%S')}{time.time_ns() % 10**9:09d}-{os.getpid()}"
 
     def add(self, rows: Sequence[dict]) -> None:
         self.rows.extend(rows)
@@ -505,6 +529,8 @@ class PartWriter:
             fields.append(pa.field(n, t))
         table = pa.Table.from_pylist([{n: r.get(n) for n in names} for r in self.rows], schema=pa.schema(fields))
         path = self.folder / f"part-{self._stamp}-{len(self.files):05d}.parquet"
+        if path.exists():
+            raise FileExistsError(f"{path} exists already")
         tmp = path.with_name(path.name + ".tmp")
         pq.write_table(table, tmp)
         os.replace(tmp, path)
