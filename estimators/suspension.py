@@ -113,7 +113,7 @@ class EstimatorConfig:
     # the RLS change detection minus refilter_lookback s), the filter is re-run from a snapshot
     # taken before the onset over the buffered measurements with the new model. 0 disables.
     refilter_span: float = 2.0  # s
-    refilter_lookback: float = 0.05  # s before the RLS change detection
+    refilter_lookback: float = 0.1  # s before the RLS change detection (it comes up to 85 ms late)
     refilter_confirm: float = 0.5  # s of agreement of data and model mass that close an episode
     snapshot_interval: float = 0.02  # s between filter snapshots
 
