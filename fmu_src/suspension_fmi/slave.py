@@ -56,6 +56,9 @@ class ContractSlave(Fmi2Slave):
             self._names[var.type][len(self.vars) - 1] = var.name
             if var.causality == "input" and var.type == "Real" and var.allowed is not None:
                 self._checked_inputs.append(var)
+        self._input_bounds = [(v, *((float(v.allowed[0]), float(v.allowed[1]))
+                                    if isinstance(v.allowed, tuple) else (math.inf, -math.inf)))
+                              for v in self._checked_inputs]
 
     # -- hooks for subclasses ---------------------------------------------------------------
     def setup(self) -> None:
@@ -68,9 +71,11 @@ class ContractSlave(Fmi2Slave):
     def input_problems(self) -> list[str]:
         """Messages for inputs outside their ranges (non-finite included)."""
         out = []
-        for var in self._checked_inputs:
+        for var, lo, hi in self._input_bounds:
             value = getattr(self, var.name)
-            if (msg := problem(var, value)) is not None:
+            # strictly inside the range is allowed whatever its ends (NaN is not): the full
+            # check only for the rest
+            if not lo < value < hi and (msg := problem(var, value)) is not None:
                 out.append(msg)
         return out
 
