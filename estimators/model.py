@@ -58,12 +58,13 @@ expm([[-A, G Qc G^T], [0, A^T]] h) = [[., Phi^-1 Q_d], [0, Phi^T]].
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import expm
 
-from plant.iso8608 import N0
+from plant.iso8608 import N0, N_MAX, N_MIN
 from plant.vehicle import Vehicle
 
 N_STATES = 6
@@ -333,7 +334,7 @@ def held_input_matrix(A: np.ndarray, G: np.ndarray, h: float) -> np.ndarray:
     return np.ascontiguousarray(expm(M * h)[:n, n:])
 
 
-def iso_road_height_std(gd_n0: float, n_min: float = 0.011, n_max: float = 2.83) -> float:
+def iso_road_height_std(gd_n0: float, n_min: float = N_MIN, n_max: float = N_MAX) -> float:
     """Standard deviation (m) of an ISO 8608 waviness-2 road height over the band
     [n_min, n_max] cycle/m: sigma^2 = int Gd(n0) (n0/n)^2 dn = Gd(n0) n0^2 (1/n_min - 1/n_max)
     (ISO 8608 PSD; the band of plant.road's generated profiles). Gd(n0) in m^3."""
@@ -350,14 +351,16 @@ def reference_step_response(t: float | np.ndarray, road: RoadModel = RoadModel()
     (zeta < 1). A car that starts at rest on an unknown road height z_0 is that step: the raw road
     error then carries -z_0 g(t) besides the error P describes (0.30 z_0 at 10 s, -0.19 z_0 at
     30 s with f_ref = 0.01 Hz). Returns 0 when f_ref = 0 (no reference)."""
+    w, z = 2 * math.pi * road.f_ref, float(road.zeta_ref)
+    if z >= 1.0:
+        raise ValueError(f"zeta_ref = {z!r} must be below 1")
+    wd, c = w * math.sqrt(1 - z * z), z / math.sqrt(1 - z * z)
+    if isinstance(t, float):  # the estimator's per-step call: scalar arithmetic
+        return 0.0 if road.f_ref <= 0 else math.exp(-z * w * t) * (math.cos(wd * t) - c * math.sin(wd * t))
     t = np.asarray(t, float)
     if road.f_ref <= 0:
         return np.zeros_like(t)
-    w, z = 2 * np.pi * road.f_ref, float(road.zeta_ref)
-    if z >= 1.0:
-        raise ValueError(f"zeta_ref = {z!r} must be below 1")
-    wd = w * np.sqrt(1 - z * z)
-    return np.exp(-z * w * t) * (np.cos(wd * t) - z / np.sqrt(1 - z * z) * np.sin(wd * t))
+    return np.exp(-z * w * t) * (np.cos(wd * t) - c * np.sin(wd * t))
 
 
 def start_level_std(t: float | np.ndarray, gd_n0: float, road: RoadModel = RoadModel()) -> np.ndarray:

@@ -37,7 +37,8 @@ from plant.vehicle import Vehicle, VEHICLE_RANGES, check_range
 from .kalman import LinearKF, MMEKF
 from .mass import MassEstimator
 from .model import (IVR, IVS, IVU, IZR, IZS, IZU, N_STATES, N_STATES_AVG, DiscreteModel, ModelNoise,
-                    RoadModel, held_input_matrix, measurement_covariance)
+                    RoadModel, held_input_matrix, iso_road_height_std, measurement_covariance,
+                    reference_step_response)
 from .road_class import RoadClassifier
 
 OUTPUTS = ("road_height_est", "road_velocity_est", "road_height_std", "z_s_est", "v_s_est",
@@ -177,6 +178,7 @@ class SuspensionEstimator:
         self.classifier = RoadClassifier(gain=cfg.class_gain)
         self.model: DiscreteModel | None = None
         self._model_key: tuple | None = None
+        self._class_height_std: dict[int, float] = {}  # m, ISO road-height std per class
         self.m_model = float(cfg.m_s_nominal)
         self.time = 0.0
         self.distance = 0.0
@@ -206,6 +208,7 @@ class SuspensionEstimator:
         n = self.n_states
         kf = self.kf
         kf.x = np.zeros(n)
+        self._t_reset = self.time  # the estimate restarts from zero: see road_height_std
         kf.P_post = None
         kf.unfreeze()
         if self.model is None or not kf.stationary():
@@ -456,7 +459,19 @@ class SuspensionEstimator:
         out = self.outputs
         out["road_height_est"] = x[IZR]
         out["road_velocity_est"] = x[IVR]
-        out["road_height_std"] = math.sqrt(max(float(kf.P[IZR, IZR]), 0.0))
+        # P is the error relative to the common-mode reference; the unknown road height the car
+        # started on (or stood on at a re-initialisation), z_0, adds -z_0 g(t) to the raw error
+        # (model.start_level_std), z_0 ~ the road-height std of the assumed class
+        var = max(float(kf.P[IZR, IZR]), 0.0)
+        t_rel = self.time - self._t_reset
+        if t_rel < 400.0:
+            cls = self.assumed_class
+            s0 = self._class_height_std.get(cls)
+            if s0 is None:
+                s0 = self._class_height_std[cls] = iso_road_height_std(iso8608.class_psd_n0(cls))
+            s0 *= reference_step_response(t_rel, cfg.road_model)
+            var += s0 * s0
+        out["road_height_std"] = math.sqrt(var)
         out["z_s_est"] = x[IZS]
         out["v_s_est"] = x[IVS]
         out["z_u_est"] = x[IZU]
