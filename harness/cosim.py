@@ -440,6 +440,31 @@ class CoSimulation:
             out[k] = rows[:, j]
         return out
 
+    def _initialize(self, inst: _Instance, t0: float) -> str | None:
+        """Instantiate (once) and initialize one instance at t0 (s): parameters, then its inputs
+        from the wiring buffer; its outputs go into the buffer. Returns why it failed, or None."""
+        buf = self._buf
+        try:
+            if not inst.instantiated:
+                inst.fmu.instantiate(loggingOn=True, callbacks=inst.callbacks)
+                inst.instantiated = True
+            inst.fmu.setupExperiment(startTime=t0)
+            inst.fmu.enterInitializationMode()
+            prefix = inst.name + "."
+            inst.set_values({k[len(prefix):]: v for k, v in self.parameters.items() if k.startswith(prefix)})
+            for setter, vrs, idx in inst.sets:
+                setter(vrs, [buf[i] for i in idx])
+            inst.fmu.exitInitializationMode()
+            inst.initialized = True
+            for getter, vrs, idx in inst.gets:
+                for i, v in zip(idx, getter(vrs)):
+                    buf[i] = v
+        except FMICallException as e:
+            return f"failed to initialize ({STATUS[e.status]} from {e.function})"
+        if any(s in ("error", "fatal") for s, _ in inst.messages):
+            return "refused to initialize"
+        return None
+
     def run(self, stop_time: float | None = None, step_size: float | Sequence[float] = 1e-3,
             progress: Callable[[int], None] | None = None) -> np.ndarray:
         """Initialize and step to ``stop_time`` (s) with ``step_size`` (s).
@@ -486,26 +511,8 @@ class CoSimulation:
         for j, s in enumerate(ext):
             buf[s] = first[j]
         for inst in order:
-            try:
-                if not inst.instantiated:
-                    inst.fmu.instantiate(loggingOn=True, callbacks=inst.callbacks)
-                    inst.instantiated = True
-                inst.fmu.setupExperiment(startTime=t0)
-                inst.fmu.enterInitializationMode()
-                prefix = inst.name + "."
-                inst.set_values({k[len(prefix):]: v for k, v in self.parameters.items() if k.startswith(prefix)})
-                for setter, vrs, idx in inst.sets:
-                    setter(vrs, [buf[i] for i in idx])
-                inst.fmu.exitInitializationMode()
-                inst.initialized = True
-                for getter, vrs, idx in inst.gets:
-                    for i, v in zip(idx, getter(vrs)):
-                        buf[i] = v
-            except FMICallException as e:
-                raise self._fail(inst, t0, f"failed to initialize ({STATUS[e.status]} from {e.function})",
-                                 rows, 0, times) from None
-            if any(s in ("error", "fatal") for s, _ in inst.messages):
-                raise self._fail(inst, t0, "refused to initialize", rows, 0, times)
+            if (what := self._initialize(inst, t0)) is not None:
+                raise self._fail(inst, t0, what, rows, 0, times)
         rows[0] = [buf[i] for i in rec]
 
         # the step loop: Gauss-Seidel in the declared order

@@ -47,24 +47,8 @@ class Stepper(CoSimulation):
         for s, v in zip(self._external, self._inputs_at(self.time)):
             buf[s] = v
         for inst in self._order:
-            try:
-                inst.fmu.instantiate(loggingOn=True, callbacks=inst.callbacks)
-                inst.instantiated = True
-                inst.fmu.setupExperiment(startTime=self.time)
-                inst.fmu.enterInitializationMode()
-                prefix = inst.name + "."
-                inst.set_values({k[len(prefix):]: v for k, v in self.parameters.items() if k.startswith(prefix)})
-                for setter, vrs, idx in inst.sets:
-                    setter(vrs, [buf[i] for i in idx])
-                inst.fmu.exitInitializationMode()
-                inst.initialized = True
-                for getter, vrs, idx in inst.gets:
-                    for i, v in zip(idx, getter(vrs)):
-                        buf[i] = v
-            except FMICallException as e:
-                raise self._error(inst, f"failed to initialize ({STATUS[e.status]} from {e.function})") from None
-            if any(s in ("error", "fatal") for s, _ in inst.messages):
-                raise self._error(inst, "refused to initialize")
+            if (what := self._initialize(inst, self.time)) is not None:
+                raise self._error(inst, what)
         return np.array([buf[i] for i in self._record_slots], dtype=float)
 
     def advance(self, n: int, h: float) -> np.ndarray:
