@@ -403,6 +403,7 @@ def run_specs(specs: Sequence[RunSpec], workers: int = 2, scheduler: str | None 
     results: list[dict | None] = [None] * len(specs)
     cluster = None if scheduler else local_cluster(max(1, min(workers, len(specs))))
     client = Client(scheduler or cluster)
+    finished = False
     try:
         with tqdm(total=len(specs), unit="run", desc="paper", disable=not progress or None) as bar:
             say = log or bar.write
@@ -419,11 +420,13 @@ def run_specs(specs: Sequence[RunSpec], workers: int = 2, scheduler: str | None 
                 return i, {"spec": asdict(spec), "name": spec.name, "ok": False, "wall_s": 0.0, "error": message}
 
             execute(list(enumerate(specs)), _run_spec, on_result, client, on_error)
+        finished = True
     finally:
-        try:
-            client.run(close_worker)
-        except Exception:  # noqa: BLE001 - workers gone: nothing left to close
-            pass
+        if finished:
+            try:
+                client.run(close_worker)
+            except Exception:  # noqa: BLE001 - workers gone: nothing left to close
+                pass
         client.close()
         if cluster is not None:
             cluster.close()
@@ -677,6 +680,7 @@ def run_sweep(sweep: Sweep, dist: Path | str, out: Path | str | None = None, wor
                          written=0, failed=0, wall_s=0.0, output=out)
     writer = PartWriter(out)
     client = cluster = None
+    finished = False
     with tqdm(total=len(tasks), unit="run", desc=sweep.name, disable=not progress or None) as bar:
         say = log or bar.write
 
@@ -702,13 +706,15 @@ def run_sweep(sweep: Sweep, dist: Path | str, out: Path | str | None = None, wor
                     client = Client(cluster)
                 report.workers = len(client.nthreads())
             execute(tasks, run_task, on_result, client, failed_rows)
+            finished = True
         finally:
             writer.close()
             if client is not None:
-                try:
-                    client.run(close_worker)
-                except Exception:  # noqa: BLE001 - workers gone: nothing left to close
-                    pass
+                if finished:  # (not while a run may still go on: interrupted, the workers are closed)
+                    try:
+                        client.run(close_worker)
+                    except Exception:  # noqa: BLE001 - workers gone: nothing left to close
+                        pass
                 client.close()
             else:
                 close_worker()
