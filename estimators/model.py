@@ -54,7 +54,9 @@ larger values decouple the measured body acceleration from the body motion and s
 estimated road (1e-4 gave an in-band gain of 0.4).
 
 Discretisation is exact: Phi = expm(A h) and Q_d by Van Loan's method,
-expm([[-A, G Qc G^T], [0, A^T]] h) = [[., Phi^-1 Q_d], [0, Phi^T]].
+expm([[-A, G Qc G^T], [0, A^T]] h) = [[., Phi^-1 Q_d], [0, Phi^T]]. For a mode much faster
+than the step (a very stiff damper on a light wheel) Phi @ (Phi^-1 Q_d) cancels catastrophically
+and Q_d is built by squaring from a short sub-step instead (``discretise``).
 """
 from __future__ import annotations
 
@@ -165,17 +167,68 @@ def noise_intensity(gd_n0: float, speed: float, road: RoadModel = RoadModel(),
     return Qc
 
 
-def discretise(A: np.ndarray, Qc: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
-    """Exact (Phi, Q_d) over a step h (s): Phi = expm(A h), Q_d by Van Loan's method."""
+# Van Loan's Q_d = Phi @ (Phi^-1 Q_d) cancels: the upper-right block carries expm(-A h), whose
+# entries grow like e^(|Re lambda| h) for a fast stable mode (the wheel of a stiff damper,
+# c_s/m_u = 2.5e5 1/s at h = 2 ms: e^512 ~ 1e222), and the product returns rounding of that size
+# (|Q_d| ~ 1e194 instead of 0.4). VAN_LOAN_MAX_GAIN bounds the growth max|Phi| max|E12| / max|Q_d|
+# (6 for the default vehicle at 1 ms) up to which that rounding, ~2e-16 times it relative to
+# max|Q_d|, is accepted; above it Q_d is built by squaring (``_squared_noise``).
+VAN_LOAN_MAX_GAIN = 1e4
+# ||A t||_1 (dimensionless) of the sub-step the squaring starts from: expm(-A t) grows at most
+# e^0.5 there, so its Van Loan block loses no digits
+SUBSTEP_NORM = 0.5
+
+
+def _van_loan(A: np.ndarray, Qc: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """(Phi, Q_d unsymmetrised, gain) by Van Loan's method over h (s); gain = max|Phi| max|E12|
+    / max|Q_d| (dimensionless) is the factor by which the product Phi @ E12 amplifies rounding."""
     n = A.shape[0]
     M = np.zeros((2 * n, 2 * n))
     M[:n, :n] = -A
     M[:n, n:] = Qc
     M[n:, n:] = A.T
-    E = expm(M * h)
-    Phi = np.ascontiguousarray(E[n:, n:].T)  # strided views round differently after a state copy
-    Qd = Phi @ E[:n, n:]
-    return Phi, 0.5 * (Qd + Qd.T)
+    with np.errstate(all="ignore"):  # a stiff A overflows expm(-A h): reported as gain = inf
+        E = expm(M * h)
+        # contiguous: strided views round differently after a state copy
+        Phi = np.ascontiguousarray(E[n:, n:].T)
+        Qd = Phi @ E[:n, n:]
+        scale = np.max(np.abs(Qd))
+        gain = float(np.max(np.abs(Phi)) * np.max(np.abs(E[:n, n:])) / scale) if scale > 0 else 1.0
+    return Phi, Qd, gain if np.isfinite(gain) and np.isfinite(scale) else math.inf
+
+
+def _squared_noise(A: np.ndarray, Qc: np.ndarray, h: float) -> np.ndarray:
+    """Q_d (symmetric PSD) over h (s) for a stiff A, without the cancellation of Van Loan's
+    method: Van Loan over the sub-step t = h / 2^s with ||A t||_1 <= SUBSTEP_NORM, then s
+    doublings Q(2t) = Q(t) + Phi(t) Q(t) Phi(t)', Phi(2t) = Phi(t)^2 (exact: the noise of the
+    second half plus the first half's carried through). Every term is PSD, so nothing cancels;
+    the eigenvalues of the result below rounding (|lambda| < n eps max|Q_d|, which Van Loan's
+    method does not resolve either) are clipped to zero."""
+    norm = float(np.linalg.norm(A, 1)) * h
+    s = max(0, int(math.ceil(math.log2(norm / SUBSTEP_NORM)))) if norm > SUBSTEP_NORM else 0
+    Phi, Q, _ = _van_loan(A, Qc, h / 2.0 ** s)
+    Q = 0.5 * (Q + Q.T)
+    for _ in range(s):
+        Q = Q + Phi @ Q @ Phi.T
+        Q = 0.5 * (Q + Q.T)
+        Phi = Phi @ Phi
+    w, V = np.linalg.eigh(Q)
+    w = np.where(w > 0.0, w, 0.0)
+    Q = (V * w) @ V.T
+    return 0.5 * (Q + Q.T)
+
+
+def discretise(A: np.ndarray, Qc: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact (Phi, Q_d) over a step h (s): Phi = expm(A h), Q_d by Van Loan's method, or, when
+    its rounding would be amplified by more than VAN_LOAN_MAX_GAIN (a mode much faster than
+    the step, e.g. the wheel of a very stiff damper), by squaring from a short sub-step
+    (``_squared_noise``). Q_d is symmetric; in the squared case also PSD. Units: A in 1/s,
+    Qc in (state unit)^2/s, Q_d in (state unit)^2."""
+    Phi, Qd, gain = _van_loan(A, Qc, h)
+    if gain <= VAN_LOAN_MAX_GAIN:
+        return Phi, 0.5 * (Qd + Qd.T)
+    # Van Loan's Phi block is exact but NaN once expm(-A h) overflows: expm(A h) directly
+    return np.ascontiguousarray(expm(A * h)), _squared_noise(A, Qc, h)
 
 
 def discretise_held_road(A: np.ndarray, Qc: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
