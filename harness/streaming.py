@@ -75,7 +75,7 @@ class Stepper(CoSimulation):
                 for setter, vrs, idx in inst.sets:
                     setter(vrs, [buf[i] for i in idx])
                 try:
-                    inst.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+                    inst.do_step(t, h)
                 except FMICallException as e:
                     raise self._error(inst, f"refused the step ({STATUS[e.status]})") from None
                 for getter, vrs, idx in inst.gets:
