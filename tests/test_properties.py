@@ -115,7 +115,7 @@ def test_plant_core_is_linear_and_finite(v, h, seed, scale):
         b.step(scale * r, h)
         assert np.all(np.isfinite(a.x)) and np.all(np.isfinite(a.measured))
     np.testing.assert_allclose(b.x, scale * a.x, rtol=1e-9, atol=1e-15)
-    np.testing.assert_allclose(b.measured, scale * a.measured, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(b.measured, scale * np.asarray(a.measured), rtol=1e-9, atol=1e-12)
 
 
 @CORE
