@@ -440,6 +440,23 @@ class CoSimulation:
             out[k] = rows[:, j]
         return out
 
+    def _step_instances(self, order: list[_Instance], t: float, h: float) -> tuple[_Instance, str] | None:
+        """One Gauss-Seidel step from t (s) by h (s): each instance in order reads its inputs from
+        the wiring buffer, steps, and writes its outputs there. Returns (instance, why) if one
+        refused the step, else None."""
+        buf = self._buf
+        for inst in order:
+            for setter, vrs, idx in inst.sets:
+                setter(vrs, [buf[i] for i in idx])
+            try:
+                inst.do_step(t, h)
+            except FMICallException as e:
+                return inst, f"refused the step ({STATUS[e.status]})"
+            for getter, vrs, idx in inst.gets:
+                for i, v in zip(idx, getter(vrs)):
+                    buf[i] = v
+        return None
+
     def _initialize(self, inst: _Instance, t0: float) -> str | None:
         """Instantiate (once) and initialize one instance at t0 (s): parameters, then its inputs
         from the wiring buffer; its outputs go into the buffer. Returns why it failed, or None."""
@@ -526,17 +543,8 @@ class CoSimulation:
                 vals = table[k]
                 for j, s in enumerate(ext):
                     buf[s] = vals[j]
-                for inst in order:
-                    for setter, vrs, idx in inst.sets:
-                        setter(vrs, [buf[i] for i in idx])
-                    try:
-                        inst.do_step(t, h)
-                    except FMICallException as e:
-                        raise self._fail(inst, t, f"refused the step ({STATUS[e.status]})",
-                                         rows, k + 1, times) from None
-                    for getter, vrs, idx in inst.gets:
-                        for i, v in zip(idx, getter(vrs)):
-                            buf[i] = v
+                if (refusal := self._step_instances(order, t, h)) is not None:
+                    raise self._fail(refusal[0], t, refusal[1], rows, k + 1, times)
                 rows[k + 1] = [buf[i] for i in rec]
                 if progress is not None and (k + 1) % every == 0:
                     progress(k + 1 - done)

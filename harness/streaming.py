@@ -15,9 +15,8 @@ start (no per-step arrays: their length would fix the run's length).
 from __future__ import annotations
 
 import numpy as np
-from fmpy.fmi1 import FMICallException
 
-from .cosim import STATUS, CoSimulation, SimulationError, _claim_logger
+from .cosim import CoSimulation, SimulationError, _claim_logger
 
 
 class Stepper(CoSimulation):
@@ -71,16 +70,8 @@ class Stepper(CoSimulation):
             if timed:
                 for s, v in zip(ext, self._inputs_at(t)):
                     buf[s] = v
-            for inst in order:
-                for setter, vrs, idx in inst.sets:
-                    setter(vrs, [buf[i] for i in idx])
-                try:
-                    inst.do_step(t, h)
-                except FMICallException as e:
-                    raise self._error(inst, f"refused the step ({STATUS[e.status]})") from None
-                for getter, vrs, idx in inst.gets:
-                    for i, v in zip(idx, getter(vrs)):
-                        buf[i] = v
+            if (refusal := self._step_instances(order, t, h)) is not None:
+                raise self._error(*refusal)
             rows[j] = [buf[i] for i in rec]
             self.steps_done += 1
             # while every step had size h, times are start + k h exactly (no rounding drift over
