@@ -112,6 +112,7 @@ class LinearKF:
         self.stationary_now = False  # P is at the fixed point (frozen or not)
         self.frozen = False
         self._calm = 0
+        self._P_last: np.ndarray | None = None  # the last P_post (no fixed point known)
         self._P_prior_ss: np.ndarray | None = None
         self._P_post_ss: np.ndarray | None = None
         self.P_post: np.ndarray | None = None
@@ -245,7 +246,7 @@ class LinearKF:
                 self.P = self.P_post = ref
                 self._freeze()
             return
-        old = getattr(self, "_P_last", None)
+        old = self._P_last
         self._P_last = P_new
         if old is not None and np.max(np.abs(P_new - old)) <= self.freeze_tol * np.max(np.abs(P_new)):
             self._calm += 1
