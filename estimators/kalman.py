@@ -84,6 +84,34 @@ def stationary_covariance(F: np.ndarray, Q: np.ndarray, H: np.ndarray, R: np.nda
     return np.ascontiguousarray(Pp), np.ascontiguousarray(P)
 
 
+def error_buildup(F: np.ndarray, H: np.ndarray, K: np.ndarray, P: np.ndarray, i: int, m: int,
+                  n_max: int, tol: float = 1e-9) -> np.ndarray:
+    """Deficit of the error variance of state ``i`` of a filter with the constant gain K that
+    starts with no error, as a fraction of its stationary posterior variance, every m steps.
+
+    With x <- F x; x <- x + K (z - H x) the posterior error obeys e_k = A e_{k-1} + (noise),
+    A = (I - K H) F, and its covariance S_k = A S_{k-1} A' + (I - K H) Q (I - K H)' + K R K'.
+    The stationary posterior P is that recursion's fixed point, so S_k - P = A^k (S_0 - P) A'^k:
+    from S_0 = 0, S_k = P - A^k P A'^k. Returns d_j = [A^(j m) P A'^(j m)]_ii / P_ii for
+    j = 0, 1, ..., at most n_max + 1 values (d_0 = 1), stopping once d_j < tol; the variance
+    after k steps is P_ii (1 - d(k / m)). Dimensionless."""
+    n = F.shape[0]
+    A = (np.eye(n) - K @ H) @ F
+    B = np.linalg.matrix_power(A, int(m))
+    X = np.array(P, float)
+    p = float(X[i, i])
+    out = [1.0]
+    if not p > 0:
+        return np.array(out)
+    for _ in range(int(n_max)):
+        X = B @ X @ B.T
+        d = float(X[i, i]) / p
+        out.append(d)
+        if not d >= tol:  # also stops on a non-finite value
+            break
+    return np.array(out)
+
+
 class LinearKF:
     """x_k = F x_{k-1} + w (cov Q),  z_k = H x_k + v (cov R); paper 000 eqs. 10-14.
 
@@ -147,6 +175,11 @@ class LinearKF:
         self.P = self.P_post = self._ss[1]
         self._freeze()
         return True
+
+    @property
+    def stationary_solution(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(K, P_post) at the model's fixed point once ``stationary()`` has found it, else None."""
+        return None if self._ss is None else (self._ss_gain[0], self._ss[1])
 
     def _freeze(self) -> None:
         self.stationary_now = True

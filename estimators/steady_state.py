@@ -1,4 +1,5 @@
-"""Steady-state (frequency-domain) analysis of the road filter: a design tool, no simulation.
+"""Steady-state (frequency-domain) analysis of the road filter: a design tool, no simulation,
+and the real raw road-error variance the estimator reports (``raw_error_variance``).
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python -m estimators.steady_state              (old vs new design)
     OPENBLAS_NUM_THREADS=1 .venv/bin/python -m estimators.steady_state --sampling   (acc_sampling 0 vs 1)
@@ -15,7 +16,6 @@ variance to compare with the filter's own P[z_r, z_r].
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import butter, sosfreqz
 
 from plant import iso8608
 from plant.quarter_car import discretise as plant_discretise
@@ -76,6 +76,53 @@ def filter_transfer(Phi, H, K, zinv, rows) -> np.ndarray:
     return out
 
 
+
+def road_error_variance(Phi, H, K, h: float, gd_n0: float, speed: float, vehicle: Vehicle = DEFAULT_VEHICLE,
+                        acc_sampling: int = 0, row: int = 4, nf: int = 400) -> float:
+    """Variance (m^2) of the road-height error that an ISO 8608 road leaves in the steady-state
+    filter with gain K: the integral of |T(f) - 1|^2 S_r(f) over the ISO band (``analyse``'s
+    road part, vectorised over nf log-spaced frequencies; band N_MIN..N_MAX at ``speed`` m/s,
+    cut at 0.999 Nyquist). T is the road -> estimate transfer through the plant (``vehicle``,
+    accelerations sampled per ``acc_sampling``) and the filter (state ``row``); the
+    measurement channels are the first K.shape[1] of [a_s, a_u, z_s - z_u]."""
+    v = max(abs(float(speed)), 0.1)
+    f_lo, f_hi = iso8608.N_MIN * v, min(iso8608.N_MAX * v, 0.999 / (2 * h))
+    if not f_hi > f_lo:
+        return 0.0
+    f = np.geomspace(f_lo, f_hi, nf)
+    zi = np.exp(-2j * np.pi * f * h)[:, None, None]
+    A4, B4 = state_matrices(vehicle)
+    Ad, Bd = plant_discretise(A4, B4, h)
+    X = np.linalg.solve(np.eye(4) - Ad * zi, np.broadcast_to(Bd[:, None], (nf, 4, 1)))[..., 0]
+    if acc_sampling == 1:
+        d = (1 - zi[:, 0, 0]) / h
+        G = np.stack([d * X[:, 1], d * X[:, 3], X[:, 0] - X[:, 2]], axis=1)
+    else:
+        C = np.array([A4[1], A4[3], [1.0, 0.0, -1.0, 0.0]])
+        D = np.array([B4[1], B4[3], 0.0])
+        G = X @ C.T + D
+    n = Phi.shape[0]
+    M = (np.eye(n) - K @ H) @ Phi
+    Y = np.linalg.solve(np.eye(n) - M * zi, np.broadcast_to(K, (nf,) + K.shape))
+    T = np.einsum("fi,fi->f", Y[:, row, :], G[:, :K.shape[1]])
+    Sr = iso_psd_time(f, gd_n0, v)
+    return float(np.trapezoid(np.abs(T - 1) ** 2 * Sr, f))
+
+
+def raw_error_variance(Phi, H, K, R, h: float, gd_n0: float, speed: float, vehicle: Vehicle = DEFAULT_VEHICLE,
+                       acc_sampling: int = 0, row: int = 4) -> float:
+    """Steady-state variance (m^2) of the raw road-height error of the filter with gain K on an
+    ISO road (``road_error_variance``) with white sensor noise of covariance R: the sensor part
+    is exact, S = A S A' + K R K' with A = (I - K H) Phi (discrete Lyapunov equation). This is
+    the filter's real error when the vehicle is the model's, which its own P is not: P also
+    carries the model noise (ModelNoise) and the road intensity of the class Q is set from."""
+    from scipy.linalg import solve_discrete_lyapunov
+
+    A = (np.eye(Phi.shape[0]) - K @ H) @ Phi
+    S = solve_discrete_lyapunov(A, K @ R @ K.T)
+    return float(S[row, row]) + road_error_variance(Phi, H, K, h, gd_n0, speed, vehicle, acc_sampling, row)
+
+
 def analyse(Phi, H, K, R_true, h, gd_n0, speed, vehicle=DEFAULT_VEHICLE, road_row=None,
             f=None, n_min=iso8608.N_MIN, acc_sampling=0):
     """Spectral scores of the steady-state filter (K) on an ISO road: dict + spectra.
@@ -99,6 +146,8 @@ def analyse(Phi, H, K, R_true, h, gd_n0, speed, vehicle=DEFAULT_VEHICLE, road_ro
     Snoise = (np.abs(F) ** 2 * Sn).sum(1)
     Se = np.abs(T - 1) ** 2 * Sr + Snoise
     Sest = np.abs(T) ** 2 * Sr + Snoise
+    from scipy.signal import butter, sosfreqz
+
     sos = butter(HP_ORDER, HP_CUTOFF, btype="highpass", fs=1 / h, output="sos")
     _, hp = sosfreqz(sos, worN=f, fs=1 / h)
     w = np.abs(hp) ** 4  # filtfilt: |HP|^2 in amplitude

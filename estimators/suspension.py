@@ -34,18 +34,22 @@ import numpy as np
 from plant import iso8608
 from plant.vehicle import Vehicle, VEHICLE_RANGES, check_range
 
-from .kalman import LinearKF, MMEKF
+from .kalman import LinearKF, MMEKF, error_buildup
 from .mass import MassEstimator
 from .model import (IVR, IVS, IVU, IZR, IZS, IZU, N_STATES, N_STATES_AVG, DiscreteModel, ModelNoise,
                     RoadModel, held_input_matrix, iso_road_height_std, measurement_covariance,
                     reference_step_response)
 from .road_class import RoadClassifier
+from .steady_state import raw_error_variance
 
 OUTPUTS = ("road_height_est", "road_velocity_est", "road_height_std", "z_s_est", "v_s_est",
            "z_u_est", "v_u_est", "susp_deflection_est", "tire_deflection_est", "sprung_mass_est",
            "road_class_est", "nis", "status")
 
 STATUS_OK, STATUS_REJECTED, STATUS_REINIT = 0, 1, 2
+EPS = float(np.finfo(float).eps)
+# largest eps (measurement coefficient / noise std)^2 accepted (EstimatorConfig._resolution_problem)
+RESOLUTION_LIMIT = 1e-3
 
 
 @dataclass
@@ -142,7 +146,33 @@ class EstimatorConfig:
         msgs.append(check_range("mme_weight", float(self.mme_weight), 0.0, 1e12))
         msgs.append(check_range("default_class", self.default_class, 1, 8))
         msgs.append(check_range("q_class_min", self.q_class_min, 1, 8))
-        return [m for m in msgs if m]
+        msgs = [m for m in msgs if m]
+        return msgs or [m for m in [self._resolution_problem()] if m]
+
+    def _resolution_problem(self) -> str | None:
+        """A vehicle and sensors whose measurements resolve relative motion more finely than a
+        double-precision covariance in absolute coordinates can hold. With a measurement
+        coefficient g (SI: 1/s^2 on a displacement, 1/s on a velocity, 1 for the deflection)
+        against its noise std s, the filter must resolve s / g while max|P| ~ 1e-2..1: once
+        eps (g / s)^2 > RESOLUTION_LIMIT, H P H' is wrong by more than R and P loses symmetry
+        and definiteness (m_u = 1 kg with k_t = 1e9 N/m: eps (g / s)^2 = 6e2; the default
+        vehicle and sensors: 1.5e-10). Checked on valid parameters only."""
+        ms, mu, ks, kt, c = (float(x) for x in (self.m_s_nominal, self.m_u, self.k_s, self.k_t, self.c_s))
+        rows = [("acc_sprung_noise_std", float(self.acc_sprung_noise_std),
+                 {"k_s/m_s_nominal": ks / ms, "c_s/m_s_nominal": c / ms}),
+                ("acc_unsprung_noise_std", float(self.acc_unsprung_noise_std),
+                 {"(k_s+k_t)/m_u": (ks + kt) / mu, "c_s/m_u": c / mu})]
+        if self.use_deflection:
+            rows.append(("defl_noise_std", float(self.defl_noise_std), {"deflection": 1.0}))
+        for sensor, std, coef in rows:
+            name, g = max(coef.items(), key=lambda kv: kv[1])
+            r = EPS * (g / std) ** 2
+            if r > RESOLUTION_LIMIT:
+                return (f"{sensor} = {std:g} is too small for this vehicle ({name} = {g:.3g} in SI units): "
+                        f"eps*(coefficient/{sensor})^2 = {r:.1e} exceeds {RESOLUTION_LIMIT:g}, beyond what the "
+                        f"road filter's covariance can resolve in double precision; raise {sensor} or use a "
+                        f"less stiff vehicle (m_s_nominal, m_u, k_s, k_t, c_s)")
+        return None
 
 
 def validate(config: EstimatorConfig) -> list[str]:
@@ -198,17 +228,24 @@ class SuspensionEstimator:
         self._confirmed_for = 0.0  # s the model mass has agreed with the data without a break
         self._resets_seen = 0
         self.refilters = 0
-        self.reset_state()
+        # deficit of the error variance of a start from rest (see road_height_std): made at the
+        # first model, None when the estimate has not (re)started from rest
+        self._buildup: tuple[float, np.ndarray] | None = None
+        self._honest: tuple[tuple, float] | None = None  # (key, ratio): see _honest_ratio
+        self.reset_state(from_rest=True)
 
     # --- state -----------------------------------------------------------------------------
-    def reset_state(self) -> None:
+    def reset_state(self, from_rest: bool = False) -> None:
         """Zero state at the stationary covariance of the model (before the first step, when
         there is no model yet: body and wheel known to 0.1 mm / 0.1 mm/s, road to 1 cm / 0.1 m/s;
-        the first step builds the model and sets the stationary covariance)."""
+        the first step builds the model and sets the stationary covariance). ``from_rest``: the
+        start of a run, from a car at rest (the relative states are then known exactly)."""
         n = self.n_states
         kf = self.kf
         kf.x = np.zeros(n)
         self._t_reset = self.time  # the estimate restarts from zero: see road_height_std
+        self._from_rest = bool(from_rest)
+        self._buildup = None
         kf.P_post = None
         kf.unfreeze()
         if self.model is None or not kf.stationary():
@@ -217,6 +254,56 @@ class SuspensionEstimator:
         self._snaps.clear()
         # before the first model the filter is due to start at that model's fixed point
         self._snap(stationary=self.model is None or kf.stationary_now)
+
+    def _honest_ratio(self, h: float) -> float:
+        """Real steady-state raw road-error variance of the filter on an ISO road of the
+        assumed class (steady_state.raw_error_variance: sensor noise exactly, the road over
+        the ISO band) over its own P[z_r, z_r], which is larger because it also carries the
+        model noise and the road intensity of class max(class, q_class_min) that Q is set from
+        (default vehicle, 40 km/h: 5.7 / 5.8 / 6.0 mm on ISO B / C / D against 6.8 mm). Assumes
+        the vehicle is the model's and the sensors as configured. Recomputed (about 1.5 ms)
+        when the class, the step or the speed (by 5 %) changes; 1 for MME&KF (not this
+        filter form) or without a fixed point."""
+        kf, m = self.kf, self.model
+        sol = kf.stationary_solution
+        if isinstance(kf, MMEKF) or sol is None or m is None:
+            return 1.0
+        cls = self.assumed_class
+        key = (cls, round(math.log(max(m.speed, 0.1)) / math.log(1.05)), m.h)
+        if self._honest is None or self._honest[0] != key:
+            K, P = sol
+            var = raw_error_variance(m.Phi, m.H, K, self.R, m.h, iso8608.class_psd_n0(cls), m.speed,
+                                     self.cfg.vehicle(self.m_model), self.acc_sampling, IZR)
+            ratio = var / float(P[IZR, IZR]) if P[IZR, IZR] > 0 else math.nan
+            if not 0.0 < ratio <= 1e3:  # garbage from an ill-conditioned vehicle: keep P
+                ratio = 1.0
+            self._honest = (key, ratio)
+        return self._honest[1]
+
+    def _deficit(self, t: float, h: float) -> float:
+        """Fraction of the stationary road-height error variance not yet built up t s after a
+        start from rest (kalman.error_buildup, every 0.05 s, interpolated linearly). A car at
+        rest has known relative states: the error the stationary P describes grows from zero
+        over the reference's time scale (rms 3-4 mm at 10-20 s against 6-7 mm settled). Only
+        for the KF (0 for MME&KF, whose frozen step is not (I - K H) F) and while the filter
+        has a fixed point; the table is made once, at the first model, and kept through
+        rebuilds (their stationary P is close)."""
+        if self._buildup is None:
+            kf = self.kf
+            if isinstance(kf, MMEKF) or kf.stationary_solution is None:
+                self._from_rest = False
+                return 0.0
+            K, P = kf.stationary_solution
+            m = max(1, round(0.05 / h))
+            dt = m * h
+            self._buildup = (dt, error_buildup(kf.F, kf.H, K, P, IZR, m, int(400.0 / dt)))
+        dt, d = self._buildup
+        u = t / dt
+        j = int(u)
+        if j + 1 >= len(d):
+            self._from_rest = False  # built up: no more work per step
+            return 0.0
+        return float(d[j] + (u - j) * (d[j + 1] - d[j]))
 
     def _snap(self, stationary: bool | None = None) -> None:
         kf = self.kf
@@ -462,8 +549,10 @@ class SuspensionEstimator:
         # P is the error relative to the common-mode reference; the unknown road height the car
         # started on (or stood on at a re-initialisation), z_0, adds -z_0 g(t) to the raw error
         # (model.start_level_std), z_0 ~ the road-height std of the assumed class
-        var = max(float(kf.P[IZR, IZR]), 0.0)
+        var = max(float(kf.P[IZR, IZR]), 0.0) * self._honest_ratio(h)
         t_rel = self.time - self._t_reset
+        if self._from_rest:
+            var *= 1.0 - self._deficit(t_rel, h)
         if t_rel < 400.0:
             cls = self.assumed_class
             s0 = self._class_height_std.get(cls)
@@ -471,7 +560,7 @@ class SuspensionEstimator:
                 s0 = self._class_height_std[cls] = iso_road_height_std(iso8608.class_psd_n0(cls))
             s0 *= reference_step_response(t_rel, cfg.road_model)
             var += s0 * s0
-        out["road_height_std"] = math.sqrt(var)
+        out["road_height_std"] = math.sqrt(var) if var >= 0.0 else math.nan
         out["z_s_est"] = x[IZS]
         out["v_s_est"] = x[IVS]
         out["z_u_est"] = x[IZU]
