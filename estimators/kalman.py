@@ -1,7 +1,7 @@
 """Linear Kalman filter (filterpy-identical, with a stationary steady-state mode) and MME&KF.
 
 ``LinearKF`` performs exactly filterpy.kalman.KalmanFilter's predict/update (Joseph-form
-covariance update) in plain numpy; a test proves both identical to 1e-9.
+covariance update, symmetrised) in plain numpy; a test proves both identical to 1e-9.
 
 Stationary start. With fixed F, Q, H, R the covariance recursion does not depend on the data
 and converges to the solution of the discrete algebraic Riccati equation (DARE). ``stationary()``
@@ -106,8 +106,10 @@ def error_buildup(F: np.ndarray, H: np.ndarray, K: np.ndarray, P: np.ndarray, i:
     for _ in range(int(n_max)):
         X = B @ X @ B.T
         d = float(X[i, i]) / p
-        out.append(d)
-        if not d >= tol:  # also stops on a non-finite value
+        if not np.isfinite(d):
+            break
+        out.append(min(max(d, 0.0), 1.0))  # rounding on ill-conditioned models: keep it a fraction
+        if d < tol:
             break
     return np.array(out)
 
@@ -267,6 +269,9 @@ class LinearKF:
         self.x = self.x + self.K @ y
         I_KH = self._I - self.K @ self.H
         P_new = I_KH @ P @ I_KH.T + self.K @ self.R @ self.K.T
+        # the Joseph form is symmetric in exact arithmetic only: on an ill-conditioned P
+        # (eigenvalues over 1e12) its rounding asymmetry builds up step by step
+        P_new = 0.5 * (P_new + P_new.T)
         self.nis = float(y @ self.SI @ y)
         self.P_post = self.P = P_new
         if self.freeze_tol > 0 and not self.stationary_now:
@@ -306,8 +311,8 @@ class LinearKF:
         K = PHT @ SI
         self.x = self.x + K @ y
         I_KH = self._I - K @ H
-        self.P = I_KH @ P @ I_KH.T + K @ R @ K.T
-        self.P_post = self.P
+        P_new = I_KH @ P @ I_KH.T + K @ R @ K.T
+        self.P = self.P_post = 0.5 * (P_new + P_new.T)
         self.nis = float(y @ SI @ y)
 
 

@@ -115,11 +115,22 @@ def raw_error_variance(Phi, H, K, R, h: float, gd_n0: float, speed: float, vehic
     ISO road (``road_error_variance``) with white sensor noise of covariance R: the sensor part
     is exact, S = A S A' + K R K' with A = (I - K H) Phi (discrete Lyapunov equation). This is
     the filter's real error when the vehicle is the model's, which its own P is not: P also
-    carries the model noise (ModelNoise) and the road intensity of the class Q is set from."""
-    from scipy.linalg import solve_discrete_lyapunov
-
+    carries the model noise (ModelNoise) and the road intensity of the class Q is set from.
+    The Lyapunov equation is solved by doubling, S <- S + A^k S A^k', A^k <- A^k A^k: a sum of
+    PSD terms, stable where the Kronecker solve of scipy's solve_discrete_lyapunov is
+    ill-conditioned (stiff vehicles); NaN if it does not converge in 64 doublings."""
     A = (np.eye(Phi.shape[0]) - K @ H) @ Phi
-    S = solve_discrete_lyapunov(A, K @ R @ K.T)
+    S = K @ R @ K.T
+    for _ in range(64):
+        add = A @ S @ A.T
+        S = S + add
+        if not np.isfinite(S[row, row]):
+            return float("nan")
+        if add[row, row] <= 1e-13 * S[row, row]:
+            break
+        A = A @ A
+    else:
+        return float("nan")
     return float(S[row, row]) + road_error_variance(Phi, H, K, h, gd_n0, speed, vehicle, acc_sampling, row)
 
 

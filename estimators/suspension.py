@@ -32,6 +32,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from plant import iso8608
+from plant.quarter_car import NOISE_STD_RANGES
 from plant.vehicle import Vehicle, VEHICLE_RANGES, check_range
 
 from .kalman import LinearKF, MMEKF, error_buildup
@@ -47,9 +48,6 @@ OUTPUTS = ("road_height_est", "road_velocity_est", "road_height_std", "z_s_est",
            "road_class_est", "nis", "status")
 
 STATUS_OK, STATUS_REJECTED, STATUS_REINIT = 0, 1, 2
-EPS = float(np.finfo(float).eps)
-# largest eps (measurement coefficient / noise std)^2 accepted (EstimatorConfig._resolution_problem)
-RESOLUTION_LIMIT = 1e-3
 
 
 @dataclass
@@ -86,6 +84,9 @@ class EstimatorConfig:
     mass_rebuild_tol: float = 0.001  # relative; 0.6 % model-mass error cost ~2 % HP error on ISO B
     mass_rebuild_sigma: float = 3.0
     mass_warmup: float = 0.2  # s of RLS data before its estimate is fed back
+    # relative difference of the RLS mass from the model mass above which the RLS keeps using
+    # live body-acceleration and deflection samples that the road filter rejects
+    mass_trust_sensors: float = 0.05
     mass_rebuild_interval: float = 0.02  # s, minimum time between two mass rebuilds (cost cap)
     default_class: int = 3  # class assumed while road_class = 0 and none identified yet
     # Q is set from the class max(assumed class, q_class_min). Scheduling Q down to the class
@@ -141,38 +142,12 @@ class EstimatorConfig:
                 msgs.append(check_range(name, val, 0, hi))
         msgs.append(check_range("forgetting_factor", float(self.forgetting_factor), 0.9, 1.0,
                                 low_inclusive=False))
-        for name in ("acc_sprung_noise_std", "acc_unsprung_noise_std", "defl_noise_std"):
-            msgs.append(check_range(name, float(getattr(self, name)), 0.0, 1e3, low_inclusive=False))
+        for name, (lo, hi) in NOISE_STD_RANGES.items():
+            msgs.append(check_range(name, float(getattr(self, name)), lo, hi))
         msgs.append(check_range("mme_weight", float(self.mme_weight), 0.0, 1e12))
         msgs.append(check_range("default_class", self.default_class, 1, 8))
         msgs.append(check_range("q_class_min", self.q_class_min, 1, 8))
-        msgs = [m for m in msgs if m]
-        return msgs or [m for m in [self._resolution_problem()] if m]
-
-    def _resolution_problem(self) -> str | None:
-        """A vehicle and sensors whose measurements resolve relative motion more finely than a
-        double-precision covariance in absolute coordinates can hold. With a measurement
-        coefficient g (SI: 1/s^2 on a displacement, 1/s on a velocity, 1 for the deflection)
-        against its noise std s, the filter must resolve s / g while max|P| ~ 1e-2..1: once
-        eps (g / s)^2 > RESOLUTION_LIMIT, H P H' is wrong by more than R and P loses symmetry
-        and definiteness (m_u = 1 kg with k_t = 1e9 N/m: eps (g / s)^2 = 6e2; the default
-        vehicle and sensors: 1.5e-10). Checked on valid parameters only."""
-        ms, mu, ks, kt, c = (float(x) for x in (self.m_s_nominal, self.m_u, self.k_s, self.k_t, self.c_s))
-        rows = [("acc_sprung_noise_std", float(self.acc_sprung_noise_std),
-                 {"k_s/m_s_nominal": ks / ms, "c_s/m_s_nominal": c / ms}),
-                ("acc_unsprung_noise_std", float(self.acc_unsprung_noise_std),
-                 {"(k_s+k_t)/m_u": (ks + kt) / mu, "c_s/m_u": c / mu})]
-        if self.use_deflection:
-            rows.append(("defl_noise_std", float(self.defl_noise_std), {"deflection": 1.0}))
-        for sensor, std, coef in rows:
-            name, g = max(coef.items(), key=lambda kv: kv[1])
-            r = EPS * (g / std) ** 2
-            if r > RESOLUTION_LIMIT:
-                return (f"{sensor} = {std:g} is too small for this vehicle ({name} = {g:.3g} in SI units): "
-                        f"eps*(coefficient/{sensor})^2 = {r:.1e} exceeds {RESOLUTION_LIMIT:g}, beyond what the "
-                        f"road filter's covariance can resolve in double precision; raise {sensor} or use a "
-                        f"less stiff vehicle (m_s_nominal, m_u, k_s, k_t, c_s)")
-        return None
+        return [m for m in msgs if m]
 
 
 def validate(config: EstimatorConfig) -> list[str]:
@@ -203,8 +178,11 @@ class SuspensionEstimator:
         else:
             self.kf = LinearKF(self.n_states, dim_z, freeze_tol=cfg.freeze_tol, fast=cfg.fast_gain)
         self.kf.R = self.R
+        # mass estimates stay within 0.1-10 x the nominal mass and within the vehicle ranges
+        lo, hi = VEHICLE_RANGES["m_s"][:2]
+        bounds = (max(0.1 * cfg.m_s_nominal, lo), min(10.0 * cfg.m_s_nominal, hi))
         self.mass_est = (MassEstimator(cfg.m_s_nominal, cfg.k_s, cfg.c_s, cfg.forgetting_factor,
-                                       cfg.estimate_damping) if cfg.mass_estimator == 1 else None)
+                                       cfg.estimate_damping, m_bounds=bounds) if cfg.mass_estimator == 1 else None)
         self.classifier = RoadClassifier(gain=cfg.class_gain)
         self.model: DiscreteModel | None = None
         self._model_key: tuple | None = None
@@ -231,7 +209,7 @@ class SuspensionEstimator:
         # deficit of the error variance of a start from rest (see road_height_std): made at the
         # first model, None when the estimate has not (re)started from rest
         self._buildup: tuple[float, np.ndarray] | None = None
-        self._honest: tuple[tuple, float] | None = None  # (key, ratio): see _honest_ratio
+        self._honest: tuple | None = None  # (model, class, key, ratio): see _honest_ratio
         self.reset_state(from_rest=True)
 
     # --- state -----------------------------------------------------------------------------
@@ -265,20 +243,25 @@ class SuspensionEstimator:
         when the class, the step or the speed (by 5 %) changes; 1 for MME&KF (not this
         filter form) or without a fixed point."""
         kf, m = self.kf, self.model
+        cls = self.assumed_class
+        hon = self._honest
+        if hon is not None and hon[0] is m and hon[1] == cls:  # the per-step path
+            return hon[3]
         sol = kf.stationary_solution
         if isinstance(kf, MMEKF) or sol is None or m is None:
             return 1.0
-        cls = self.assumed_class
         key = (cls, round(math.log(max(m.speed, 0.1)) / math.log(1.05)), m.h)
-        if self._honest is None or self._honest[0] != key:
+        if hon is None or hon[2] != key:
             K, P = sol
             var = raw_error_variance(m.Phi, m.H, K, self.R, m.h, iso8608.class_psd_n0(cls), m.speed,
                                      self.cfg.vehicle(self.m_model), self.acc_sampling, IZR)
             ratio = var / float(P[IZR, IZR]) if P[IZR, IZR] > 0 else math.nan
             if not 0.0 < ratio <= 1e3:  # garbage from an ill-conditioned vehicle: keep P
                 ratio = 1.0
-            self._honest = (key, ratio)
-        return self._honest[1]
+        else:
+            ratio = hon[3]
+        self._honest = (m, cls, key, ratio)
+        return ratio
 
     def _deficit(self, t: float, h: float) -> float:
         """Fraction of the stationary road-height error variance not yet built up t s after a
@@ -515,9 +498,16 @@ class SuspensionEstimator:
             # substitute the filter's own value for a rejected body acceleration or deflection
             ok_a = bool(valid[0])
             ok_d = bool(valid[2]) if cfg.use_deflection else math.isfinite(deflection)
+            me = self.mass_est
+            if (not (ok_a and ok_d) and live[0] and (live[2] if cfg.use_deflection else ok_d)
+                    and abs(me.mass - self.m_model) > cfg.mass_trust_sensors * self.m_model):
+                # the road filter rejects a live sensor while the mass estimate already says its
+                # model mass is off: the model, not the sensor, is the likely culprit, and the
+                # RLS (whose regressor does not use the road filter) must go on learning, else a
+                # wrong mass on a rough road locks itself in (rejections -> no mass update)
+                ok_a = ok_d = True
             a_use = acc_sprung if ok_a else float(self.model.H[0] @ kf.x)
             d_use = deflection if ok_d else float(kf.x[IZS] - kf.x[IZU])
-            me = self.mass_est
             me.update(a_use, d_use, h, use=ok_a and ok_d and status != STATUS_REINIT)
             if me.resets != self._resets_seen:  # a payload change detected
                 self._resets_seen = me.resets

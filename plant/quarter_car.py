@@ -43,6 +43,16 @@ def discretise(A: np.ndarray, B: np.ndarray, h: float) -> tuple[np.ndarray, np.n
     return np.ascontiguousarray(E[:n, :n]), np.ascontiguousarray(E[:n, n])
 
 
+# Allowed noise stds a filter assumes for the sensors (low, high), both ends included: from
+# sensors better than any automotive accelerometer (10 ug) or displacement sensor (0.1 um) to
+# useless ones (a plant's own noise may also be 0).
+NOISE_STD_RANGES: dict[str, tuple[float, float]] = {
+    "acc_sprung_noise_std": (1e-4, 1e3),  # m/s2
+    "acc_unsprung_noise_std": (1e-4, 1e3),  # m/s2
+    "defl_noise_std": (1e-7, 1.0),  # m
+}
+
+
 @dataclass(frozen=True)
 class SensorNoise:
     """White-noise standard deviations of the three measurements."""

@@ -43,14 +43,17 @@ DEFAULT_VEHICLE = Vehicle()
 # Suspension System*: the vehicle of its simulation (sprung mass starts at 260 kg).
 PAPER001_VEHICLE = Vehicle(m_s=260.0, m_u=40.0, k_s=16000.0, k_t=183000.0, c_s=1200.0)
 
-# Allowed ranges (low, high, low_inclusive). Wide enough for any road vehicle corner,
-# narrow enough to refuse a unit slip (grams for kg, N/mm for N/m).
+# Allowed ranges (low, high, low_inclusive): road-vehicle corners from a scaled test rig or a
+# light motorcycle to a heavy truck's axle end, with margin; narrow enough to refuse a unit slip
+# (grams for kg, N/mm for N/m). Beyond them (a 1 kg wheel on a 1e9 N/m tyre: wheel hop at
+# 5 kHz) no road vehicle lies, and the road filter's covariance cannot be held in double
+# precision.
 VEHICLE_RANGES: dict[str, tuple[float, float, bool]] = {
-    "m_s": (0.0, 1e5, False),
-    "m_u": (0.0, 1e4, False),
-    "k_s": (0.0, 1e8, False),
-    "k_t": (0.0, 1e9, False),
-    "c_s": (0.0, 1e7, True),
+    "m_s": (10.0, 2e4, True),  # kg
+    "m_u": (1.0, 5e3, True),  # kg
+    "k_s": (100.0, 1e7, True),  # N/m
+    "k_t": (1e3, 1e8, True),  # N/m
+    "c_s": (0.0, 1e5, True),  # N.s/m
 }
 
 

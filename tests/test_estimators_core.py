@@ -228,7 +228,7 @@ def test_online_class_from_estimated_road():
 @pytest.mark.parametrize("name,value,needle", [
     ("forgetting_factor", 0.9, "forgetting_factor = 0.9 is outside the allowed range (0.9, 1]"),
     ("forgetting_factor", 1.01, "forgetting_factor"),
-    ("m_u", -1.0, "m_u = -1.0 is outside the allowed range (0"),
+    ("m_u", -1.0, "m_u = -1.0 is outside the allowed range [1, 5000]"),
     ("k_s", 0.0, "k_s"),
     ("road_estimator", 5, "road_estimator = 5 is outside the allowed range [0, 1]"),
     ("mass_estimator", -1, "mass_estimator"),

@@ -76,7 +76,7 @@ def test_road_height_std_builds_up_from_a_start_at_rest():
     dt, d = est._buildup
     frac = np.interp(t / dt, np.arange(len(d)), d)
     start = s0 * reference_step_response(t, RoadModel())
-    ratio = est._honest[1]  # real steady raw-error variance / P[z_r, z_r] (test_estimators_core)
+    ratio = est._honest[3]  # real steady raw-error variance / P[z_r, z_r] (test_estimators_core)
     assert 0.3 < frac < 0.99 and 0.5 < ratio < 1.0
     assert o["road_height_std"] ** 2 == pytest.approx(ratio * est.kf.P[IZR, IZR] * (1 - frac) + start ** 2, rel=1e-9)
     est.reset_state()

@@ -9,7 +9,7 @@ import math
 from dataclasses import dataclass
 
 from plant import iso8608
-from plant.quarter_car import SensorNoise
+from plant.quarter_car import NOISE_STD_RANGES, SensorNoise
 from plant.vehicle import DEFAULT_VEHICLE, VEHICLE_RANGES
 
 # unit name -> SI base-unit exponents, for <UnitDefinitions>
@@ -131,11 +131,13 @@ SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
         "0 = identify the ISO class online and schedule Q/R from it; 1..8 = assume that class (A..H)",
         {0: "identify online", **_CLASSES}),
     _real_param("acc_sprung_noise_std", "m/s2", NOISE.acc_sprung,
-                "sprung-mass accelerometer noise the filters assume (sets R)", (0.0, 1e3, False, True)),
+                "sprung-mass accelerometer noise the filters assume (sets R)",
+                NOISE_STD_RANGES["acc_sprung_noise_std"]),
     _real_param("acc_unsprung_noise_std", "m/s2", NOISE.acc_unsprung,
-                "unsprung-mass accelerometer noise the filters assume (sets R)", (0.0, 1e3, False, True)),
+                "unsprung-mass accelerometer noise the filters assume (sets R)",
+                NOISE_STD_RANGES["acc_unsprung_noise_std"]),
     _real_param("defl_noise_std", "m", NOISE.deflection, "deflection-sensor noise the filters assume (sets R)",
-                (0.0, 1.0, False, True)),
+                NOISE_STD_RANGES["defl_noise_std"]),
     Var("acc_sampling", "parameter", "Integer", None, 0,
         "0 = accelerations sampled at the end of the step; 1 = averaged over the step (anti-alias filtered "
         "sensor); must match the sensor", {0: "end of step", 1: "average over the step"}),
