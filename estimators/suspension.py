@@ -233,7 +233,7 @@ class SuspensionEstimator:
         # before the first model the filter is due to start at that model's fixed point
         self._snap(stationary=self.model is None or kf.stationary_now)
 
-    def _honest_ratio(self, h: float) -> float:
+    def _honest_ratio(self) -> float:
         """Real steady-state raw road-error variance of the filter on an ISO road of the
         assumed class (steady_state.raw_error_variance: sensor noise exactly, the road over
         the ISO band) over its own P[z_r, z_r], which is larger because it also carries the
@@ -248,7 +248,10 @@ class SuspensionEstimator:
         if hon is not None and hon[0] is m and hon[1] == cls:  # the per-step path
             return hon[3]
         sol = kf.stationary_solution
-        if isinstance(kf, MMEKF) or sol is None or m is None:
+        if m is None:
+            return 1.0
+        if isinstance(kf, MMEKF) or sol is None:
+            self._honest = (m, cls, None, 1.0)
             return 1.0
         key = (cls, round(math.log(max(m.speed, 0.1)) / math.log(1.05)), m.h)
         if hon is None or hon[2] != key:
@@ -539,7 +542,7 @@ class SuspensionEstimator:
         # P is the error relative to the common-mode reference; the unknown road height the car
         # started on (or stood on at a re-initialisation), z_0, adds -z_0 g(t) to the raw error
         # (model.start_level_std), z_0 ~ the road-height std of the assumed class
-        var = max(float(kf.P[IZR, IZR]), 0.0) * self._honest_ratio(h)
+        var = max(float(kf.P[IZR, IZR]), 0.0) * self._honest_ratio()
         t_rel = self.time - self._t_reset
         if self._from_rest:
             var *= 1.0 - self._deficit(t_rel, h)
