@@ -154,3 +154,49 @@ def test_the_online_class_study_identifies_the_class(dist):
     assert r["ok"], r.get("error")
     assert r["class_first_s"] < 10.0  # a 102.4 m window at 20 m/s
     assert r["class_right"] >= 0.95 and set(r["class_counts"]) <= {3, 4, 5}
+
+
+_ORPHAN_SCRIPT = """
+import os, sys, time
+sys.path.insert(0, sys.argv[1])
+from harness.paper import process_pool
+if __name__ == "__main__":
+    ex = process_pool(1)
+    print(ex.submit(os.getpid).result(), flush=True)
+    ex.submit(time.sleep, 120)
+    time.sleep(120)
+"""
+
+
+def test_pool_workers_end_when_the_study_is_killed(tmp_path):
+    """`python -m harness paper` killed outright (SIGKILL, no clean-up): its spawned workers
+    leave within seconds instead of finishing their run and blocking on a dead pipe."""
+    import os
+    import signal
+    import time
+
+    script = tmp_path / "study.py"
+    script.write_text(_ORPHAN_SCRIPT)
+    proc = subprocess.Popen([sys.executable, str(script), str(Path(__file__).resolve().parents[1])],
+                            stdout=subprocess.PIPE, text=True)
+    try:
+        worker = int(proc.stdout.readline())
+        os.kill(worker, 0)  # alive, busy with the 120 s task
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(10)
+        for _ in range(100):
+            try:
+                os.kill(worker, 0)
+            except ProcessLookupError:
+                break
+            try:  # reap it if this process is its subreaper
+                os.waitpid(worker, os.WNOHANG)
+            except ChildProcessError:
+                pass
+            time.sleep(0.1)
+        else:
+            os.kill(worker, signal.SIGKILL)
+            pytest.fail("the pool worker outlived its killed parent by 10 s")
+    finally:
+        if proc.poll() is None:
+            proc.kill()
