@@ -52,61 +52,46 @@ def plant_transfer(vehicle: Vehicle, h: float, zinv: np.ndarray, acc_sampling: i
     the step, (v_k - v_{k-1}) / h = (1 - z^-1) / h v_k (plant.QuarterCar.step)."""
     A4, B4 = state_matrices(vehicle)
     Ad, Bd = plant_discretise(A4, B4, h)
+    zi = np.asarray(zinv)[:, None, None]
+    # x_k = (I - Ad z^-1)^-1 Bd r_k, all frequencies in one batched solve
+    X = np.linalg.solve(np.eye(4) - Ad * zi, np.broadcast_to(Bd[:, None], (len(zi), 4, 1)))[..., 0]
+    if acc_sampling == 1:
+        d = (1 - zi[:, 0, 0]) / h
+        return np.stack([d * X[:, 1], d * X[:, 3], X[:, 0] - X[:, 2]], axis=1)
     C = np.array([A4[1], A4[3], [1.0, 0.0, -1.0, 0.0]])
     D = np.array([B4[1], B4[3], 0.0])
-    out = np.empty((len(zinv), 3), complex)
-    I4 = np.eye(4)
-    for i, zi in enumerate(zinv):
-        # x_k = (I - Ad z^-1)^-1 Bd r_k
-        X = np.linalg.solve(I4 - Ad * zi, Bd)
-        if acc_sampling == 1:
-            out[i] = ((1 - zi) / h * X[1], (1 - zi) / h * X[3], X[0] - X[2])
-        else:
-            out[i] = C @ X + D
-    return out
+    return X @ C.T + D
 
 
 def filter_transfer(Phi, H, K, zinv, rows) -> np.ndarray:
-    """(nf, len(rows), 3): measurement -> chosen linear combinations (rows) of x_{k|k}."""
+    """(nf, len(rows), m): measurement -> chosen linear combinations (rows) of x_{k|k}."""
     n = Phi.shape[0]
     M = (np.eye(n) - K @ H) @ Phi
-    out = np.empty((len(zinv), len(rows), K.shape[1]), complex)
-    for i, zi in enumerate(zinv):
-        out[i] = rows @ np.linalg.solve(np.eye(n) - M * zi, K)
-    return out
-
+    zi = np.asarray(zinv)[:, None, None]
+    Y = np.linalg.solve(np.eye(n) - M * zi, np.broadcast_to(K, (len(zi),) + K.shape))
+    return np.asarray(rows) @ Y
 
 
 def road_error_variance(Phi, H, K, h: float, gd_n0: float, speed: float, vehicle: Vehicle = DEFAULT_VEHICLE,
                         acc_sampling: int = 0, row: int = 4, nf: int = 400) -> float:
     """Variance (m^2) of the road-height error that an ISO 8608 road leaves in the steady-state
     filter with gain K: the integral of |T(f) - 1|^2 S_r(f) over the ISO band (``analyse``'s
-    road part, vectorised over nf log-spaced frequencies; band N_MIN..N_MAX at ``speed`` m/s,
-    cut at 0.999 Nyquist). T is the road -> estimate transfer through the plant (``vehicle``,
-    accelerations sampled per ``acc_sampling``) and the filter (state ``row``); the
-    measurement channels are the first K.shape[1] of [a_s, a_u, z_s - z_u]."""
+    road part on nf log-spaced frequencies; band N_MIN..N_MAX at ``speed`` m/s, cut at 0.999
+    Nyquist). T is the road -> estimate transfer through the plant (``vehicle``, accelerations
+    sampled per ``acc_sampling``) and the filter (state ``row``); the measurement channels are
+    the first K.shape[1] of [a_s, a_u, z_s - z_u]."""
     v = max(abs(float(speed)), 0.1)
     f_lo, f_hi = iso8608.N_MIN * v, min(iso8608.N_MAX * v, 0.999 / (2 * h))
     if not f_hi > f_lo:
         return 0.0
     f = np.geomspace(f_lo, f_hi, nf)
-    zi = np.exp(-2j * np.pi * f * h)[:, None, None]
-    A4, B4 = state_matrices(vehicle)
-    Ad, Bd = plant_discretise(A4, B4, h)
-    X = np.linalg.solve(np.eye(4) - Ad * zi, np.broadcast_to(Bd[:, None], (nf, 4, 1)))[..., 0]
-    if acc_sampling == 1:
-        d = (1 - zi[:, 0, 0]) / h
-        G = np.stack([d * X[:, 1], d * X[:, 3], X[:, 0] - X[:, 2]], axis=1)
-    else:
-        C = np.array([A4[1], A4[3], [1.0, 0.0, -1.0, 0.0]])
-        D = np.array([B4[1], B4[3], 0.0])
-        G = X @ C.T + D
-    n = Phi.shape[0]
-    M = (np.eye(n) - K @ H) @ Phi
-    Y = np.linalg.solve(np.eye(n) - M * zi, np.broadcast_to(K, (nf,) + K.shape))
-    T = np.einsum("fi,fi->f", Y[:, row, :], G[:, :K.shape[1]])
-    Sr = iso_psd_time(f, gd_n0, v)
-    return float(np.trapezoid(np.abs(T - 1) ** 2 * Sr, f))
+    zinv = np.exp(-2j * np.pi * f * h)
+    G = plant_transfer(vehicle, h, zinv, acc_sampling)
+    e = np.zeros((1, Phi.shape[0]))
+    e[0, row] = 1.0
+    F = filter_transfer(Phi, H, K, zinv, e)[:, 0, :]
+    T = np.einsum("fi,fi->f", F, G[:, :K.shape[1]])
+    return float(np.trapezoid(np.abs(T - 1) ** 2 * iso_psd_time(f, gd_n0, v), f))
 
 
 def raw_error_variance(Phi, H, K, R, h: float, gd_n0: float, speed: float, vehicle: Vehicle = DEFAULT_VEHICLE,
