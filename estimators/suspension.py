@@ -41,6 +41,7 @@ from .model import (IVR, IVS, IVU, IZR, IZS, IZU, N_STATES, N_STATES_AVG, Discre
                     RoadModel, held_input_matrix, iso_road_height_std, measurement_covariance,
                     reference_step_response)
 from .road_class import RoadClassifier
+from .start_offset import StartOffset
 from .steady_state import raw_error_variance
 
 OUTPUTS = ("road_height_est", "road_velocity_est", "road_height_std", "z_s_est", "v_s_est",
@@ -48,6 +49,7 @@ OUTPUTS = ("road_height_est", "road_velocity_est", "road_height_std", "z_s_est",
            "road_class_est", "nis", "status")
 
 STATUS_OK, STATUS_REJECTED, STATUS_REINIT = 0, 1, 2
+START_TERM_SPAN = 400.0  # s after a (re)start beyond which the start height is left out (g ~ 1e-8)
 
 
 @dataclass
@@ -112,6 +114,9 @@ class EstimatorConfig:
     freeze_tol: float = 1e-8
     fast_gain: bool = True  # False: the full covariance recursion every step (same estimates)
     road_model: RoadModel = field(default_factory=RoadModel)
+    # estimate the road height the car started on from the road estimate (start_offset.py; KF
+    # only) and add it back as it shows through the reference; False: report -z_0 g(t) as error
+    start_offset: bool = True
     model_noise: ModelNoise = field(default_factory=ModelNoise)
     class_gain: float = 1.0  # in-band amplitude gain of the road estimate (class correction)
     # Re-filtering after a mass rebuild (see the module doc): when the road filter is rebuilt at
@@ -224,6 +229,7 @@ class SuspensionEstimator:
         self._t_reset = self.time  # the estimate restarts from zero: see road_height_std
         self._from_rest = bool(from_rest)
         self._buildup = None
+        self._offset: StartOffset | None = None  # estimate of z_0, made at the first output
         kf.P_post = None
         kf.unfreeze()
         if self.model is None or not kf.stationary():
@@ -537,26 +543,41 @@ class SuspensionEstimator:
         if status != STATUS_REINIT:
             self.classifier.update(self.distance, x[IZR], speed)
         out = self.outputs
-        out["road_height_est"] = x[IZR]
-        out["road_velocity_est"] = x[IVR]
         # P is the error relative to the common-mode reference; the unknown road height the car
         # started on (or stood on at a re-initialisation), z_0, adds -z_0 g(t) to the raw error
-        # (model.start_level_std), z_0 ~ the road-height std of the assumed class
+        # (model.start_level_std), z_0 ~ the road-height std of the assumed class. The KF
+        # estimates z_0 from its own road estimate (start_offset.py) and adds g(t) z_0^.
         var = max(float(kf.P[IZR, IZR]), 0.0) * self._honest_ratio()
         t_rel = self.time - self._t_reset
         if self._from_rest:
             var *= 1.0 - self._deficit(t_rel, h)
-        if t_rel < 400.0:
+        shift = 0.0
+        if t_rel < START_TERM_SPAN:
             cls = self.assumed_class
             s0 = self._class_height_std.get(cls)
             if s0 is None:
                 s0 = self._class_height_std[cls] = iso_road_height_std(iso8608.class_psd_n0(cls))
-            s0 *= reference_step_response(t_rel, cfg.road_model)
-            var += s0 * s0
+            g = reference_step_response(t_rel, cfg.road_model)
+            off = self._offset
+            if (off is None and cfg.start_offset and g != 0.0 and status != STATUS_REINIT
+                    and not isinstance(kf, MMEKF)):
+                off = self._offset = StartOffset(iso8608.N_MIN, cfg.road_model.f_ref, s0,
+                                                 0.0 if self._from_rest else var)
+            if off is not None:
+                if off.due(t_rel, h) and math.isfinite(x[IZR]):
+                    off.add(t_rel, x[IZR], speed, var, g, s0)
+                shift = g * off.b
+                var += off.start_variance(g)
+            else:
+                var += (s0 * g) ** 2
+        elif self._offset is not None:
+            self._offset = None  # g(t) ~ 1e-8: its samples are no longer needed
+        out["road_height_est"] = x[IZR] + shift
+        out["road_velocity_est"] = x[IVR]
         out["road_height_std"] = math.sqrt(var) if var >= 0.0 else math.nan
-        out["z_s_est"] = x[IZS]
+        out["z_s_est"] = x[IZS] + shift
         out["v_s_est"] = x[IVS]
-        out["z_u_est"] = x[IZU]
+        out["z_u_est"] = x[IZU] + shift
         out["v_u_est"] = x[IVU]
         out["susp_deflection_est"] = x[IZS] - x[IZU]
         out["tire_deflection_est"] = x[IZU] - x[IZR]

@@ -62,10 +62,11 @@ def test_error_buildup_is_the_error_covariance_recursion():
 
 
 def test_road_height_std_builds_up_from_a_start_at_rest():
-    """road_height_std^2 = c P_zr (1 - d(t)) + start-level term after the start from rest, and
-    exactly c P_zr + start-level term after a re-initialisation (c: the real steady raw-error
-    variance over P_zr) (no credit there: the relative
-    states of a moving car are not known)."""
+    """road_height_std^2 = c P_zr (1 - d(t)) + start-height term after the start from rest, and
+    exactly c P_zr + start-height term after a re-initialisation (c: the real steady raw-error
+    variance over P_zr) (no credit there: the relative states of a moving car are not known).
+    The start-height term is g^2 P_bb - 2 g P_db of the z_0 estimate (start_offset.py), which
+    shifts the road estimate by g z_0^, and starts at the prior (s0 g)^2."""
     est = SuspensionEstimator(road_class=3, mass_estimator=0)
     _, meas, _, _ = simulate(road_class=3, T=20.0)
     s0 = iso_road_height_std(iso8608.class_psd_n0(3))
@@ -78,7 +79,12 @@ def test_road_height_std_builds_up_from_a_start_at_rest():
     start = s0 * reference_step_response(t, RoadModel())
     ratio = est._honest[3]  # real steady raw-error variance / P[z_r, z_r] (test_estimators_core)
     assert 0.3 < frac < 0.99 and 0.5 < ratio < 1.0
-    assert o["road_height_std"] ** 2 == pytest.approx(ratio * est.kf.P[IZR, IZR] * (1 - frac) + start ** 2, rel=1e-9)
+    g = reference_step_response(t, RoadModel())
+    off = est._offset
+    assert 0 < off.start_variance(g) < start ** 2
+    assert o["road_height_std"] ** 2 == pytest.approx(ratio * est.kf.P[IZR, IZR] * (1 - frac) + off.start_variance(g),
+                                                      rel=1e-9)
+    assert o["road_height_est"] == pytest.approx(est.kf.x[IZR] + g * off.b, rel=0, abs=1e-15)
     est.reset_state()
     o = est.step(z[0], z[1], z[2], 40 / 3.6, h)
     assert o["road_height_std"] ** 2 == pytest.approx(
