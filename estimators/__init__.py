@@ -4,6 +4,8 @@
 - ``kalman``: Kalman filter (filterpy-identical) and MME&KF
 - ``mass``: forgetting-factor RLS sprung-mass estimation on a mass-independent regressor
 - ``road_class``: online ISO 8608 class from the PSD of the estimated road
+- ``start_offset``: the road height the car started on, from the road estimate
+- ``steady_state``: the filter's steady-state error on an ISO road, in the frequency domain
 - ``suspension``: ``SuspensionEstimator``, the object the FMU adapter drives
 """
 from .suspension import OUTPUTS, EstimatorConfig, SuspensionEstimator, validate

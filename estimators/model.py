@@ -420,6 +420,7 @@ def start_level_std(t: float | np.ndarray, gd_n0: float, road: RoadModel = RoadM
     """Std (m) at time t (s) of the raw road error from the unknown start height: the car starts
     at rest on a road height z_0 ~ N(0, iso_road_height_std(gd_n0)^2), which the relative
     measurements cannot see, and the estimate carries -z_0 g(t) (``reference_step_response``).
-    Independent of the error P describes (driven by sensor noise), so the honest raw std is
-    sqrt(P[z_r, z_r] + start_level_std(t)^2)."""
+    Independent of the error P describes (driven by sensor noise), so the honest raw std of
+    the uncorrected estimate is sqrt(P[z_r, z_r] + start_level_std(t)^2); the KF estimates z_0
+    and reports what is left of this term (start_offset.py)."""
     return iso_road_height_std(gd_n0) * np.abs(reference_step_response(t, road))

@@ -26,7 +26,14 @@ s^2(t) + g^2 P_bb - 2 g P_db (the estimate is orthogonal to its error), in place
 s^2(t) + g^2 sigma_0^2 without the correction. The surrogates are approximations: the ISO
 band has no content below n_min V, the OU road has some, so P_bb errs on the large side (core
 check, ISO D, 40 km/h, 20 seeds, 10-70 s: rms raw error 5.45 mm against a reported 5.75 mm). The samples are kept, so that a change of the
-assumed class (sigma_0) re-runs the filter over them with the new prior.
+assumed class (sigma_0) re-runs the filter over them with the new prior (at most 8000 samples:
+the estimator drops the filter 400 s after the start, where g ~ 1e-8).
+
+``SuspensionEstimator`` shifts body, wheel and road positions by g(t) b^ (the deflections are
+unchanged); the velocities are not shifted (the rate |g'(t)| b^ <= 2 zeta_ref w_ref b^ = 0.09 b^ per s,
+3 mm/s for b^ = 30 mm, the ISO D height std).
+A re-filter after a mass rebuild changes road estimates already sampled here; they are not
+re-taken. MME&KF keeps its uncorrected estimate and the prior term g^2 sigma_0^2.
 """
 from __future__ import annotations
 

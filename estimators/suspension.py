@@ -564,7 +564,7 @@ class SuspensionEstimator:
                 off = self._offset = StartOffset(iso8608.N_MIN, cfg.road_model.f_ref, s0,
                                                  0.0 if self._from_rest else var)
             if off is not None:
-                if off.due(t_rel, h) and math.isfinite(x[IZR]):
+                if off.due(t_rel, h) and math.isfinite(x[IZR]) and math.isfinite(var):
                     off.add(t_rel, x[IZR], speed, var, g, s0)
                 shift = g * off.b
                 var += off.start_variance(g)

@@ -104,3 +104,17 @@ def test_the_start_height_is_found_and_the_raw_error_drops():
     assert abs(a["err_std_hp_pct"] - b["err_std_hp_pct"]) < 0.2  # the correction is slow
     np.testing.assert_allclose(on[:, 3] - on[:, 0], on[:, 4], atol=1e-12)  # tyre deflection
     np.testing.assert_allclose(on[:, 5], on[:, 3], atol=1e-12)  # z_s - suspension deflection
+
+
+def test_calibration_script_refuses_bad_arguments(capsys):
+    """benchmarks/std_calibration.py (run by hand): a one-line reason and exit status 2."""
+    import importlib.util
+
+    from conftest import ROOT
+    spec = importlib.util.spec_from_file_location("std_calibration", ROOT / "benchmarks" / "std_calibration.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    for argv in (["--classes", "9"], ["--seeds", "x"], ["--workers", "0"]):
+        assert mod.main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "--classes" in err

@@ -1,0 +1,95 @@
+"""Is ``road_height_std`` honest? The cores over many seeds, with and without the z_0 estimate.
+
+    .venv/bin/python benchmarks/std_calibration.py [--classes 2,3,4] [--seeds 1-20] [--workers 2]
+
+For each ISO class and seed: the paper's vehicle at 410 kg, its sensor noise, 40 km/h, 1 ms,
+the plant settled on the road at t = 0 (as ``QuarterCar.fmu`` starts), the KF at the right mass
+with the online class (``mass_estimator`` 0, ``road_class`` 0), 70 s; once with the start-height
+estimate (``start_offset`` True, the default) and once without. It prints, per class and time
+window after the start, the rms raw road error against the rms reported ``road_height_std``
+over all seeds (a ratio near 1 is an honest std), and the 2σ coverage and raw error-STD % of
+``harness.metrics.road_scores`` (10-70 s) as mean ± std over seeds. The cores, not the FMUs:
+the FMU runs are those of ``python -m harness paper``; this is the many-seed check behind them.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+
+WINDOWS = ((10, 20), (20, 30), (30, 45), (45, 70), (10, 70))
+T, H, SPEED = 70.0, 1e-3, 40 / 3.6
+
+
+def run(cls: int, seed: int, start_offset: bool) -> dict:
+    """One 70 s core run: per-window sums of squared error and std, and the run's scores."""
+    from estimators import SuspensionEstimator
+    from harness.metrics import road_scores
+    from plant import iso8608
+    from plant.quarter_car import QuarterCar, SensorNoise
+    from plant.road import SyntheticRoad
+    from plant.vehicle import DEFAULT_VEHICLE
+
+    road = SyntheticRoad(iso8608.class_psd_n0(cls), seed=seed)
+    car = QuarterCar(DEFAULT_VEHICLE, SensorNoise(0.02, 0.2, 1e-4), noise_seed=1000 + seed)
+    car.settle(road.height(0.0))
+    est = SuspensionEstimator(mass_estimator=0, road_class=0, start_offset=start_offset)
+    n = int(round(T / H))
+    e, r, s = np.empty(n), np.empty(n), np.empty(n)
+    for k in range(n):
+        r[k] = road.height(SPEED * (k + 1) * H)
+        car.step(r[k], H)
+        o = est.step(*car.measured, SPEED, H)
+        e[k], s[k] = o["road_height_est"], o["road_height_std"]
+    t = np.arange(1, n + 1) * H
+    sc = road_scores(t, e, r, s)
+    win = {w: (float(np.mean((e - r)[(t >= w[0]) & (t < w[1])] ** 2)),
+               float(np.mean(s[(t >= w[0]) & (t < w[1])] ** 2))) for w in WINDOWS}
+    return {"cls": cls, "seed": seed, "on": start_offset, "win": win,
+            "coverage": 100 * sc["coverage_2sigma"], "raw": sc["err_std_raw_pct"]}
+
+
+def _seeds(text: str) -> range:
+    lo, _, hi = text.partition("-")
+    return range(int(lo), int(hi or lo) + 1)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--classes", default="2,3,4", help="ISO classes as numbers, 1 = A (default 2,3,4)")
+    p.add_argument("--seeds", default="1-20", help="seed range (default 1-20)")
+    p.add_argument("--workers", type=int, default=2)
+    a = p.parse_args(argv)
+    try:
+        classes = [int(c) for c in a.classes.split(",")]
+        seeds = _seeds(a.seeds)
+        if not classes or not all(1 <= c <= 8 for c in classes) or len(seeds) < 1 or a.workers < 1:
+            raise ValueError
+    except ValueError:
+        print("std_calibration: --classes takes numbers 1-8, --seeds a range like 1-20, --workers >= 1",
+              file=sys.stderr)
+        return 2
+    jobs = [(c, s, on) for c in classes for on in (True, False) for s in seeds]
+    with ProcessPoolExecutor(a.workers) as pool:
+        res = list(pool.map(run, *zip(*jobs)))
+    print(f"cores, 40 km/h, seeds {a.seeds}: rms raw error / rms road_height_std (ratio)")
+    for c in classes:
+        for on in (True, False):
+            rows = [x for x in res if x["cls"] == c and x["on"] == on]
+            cells = []
+            for w in WINDOWS:
+                e2 = np.mean([x["win"][w][0] for x in rows])
+                s2 = np.mean([x["win"][w][1] for x in rows])
+                cells.append(f"{w[0]}-{w[1]} s {1e3 * e2 ** 0.5:.2f}/{1e3 * s2 ** 0.5:.2f} mm ({(e2 / s2) ** 0.5:.3f})")
+            cov = np.array([x["coverage"] for x in rows])
+            raw = np.array([x["raw"] for x in rows])
+            print(f"ISO {'ABCDEFGH'[c - 1]} z_0 estimate {'on ' if on else 'off'}: " + "; ".join(cells)
+                  + f"; 2σ coverage {cov.mean():.1f} ± {cov.std(ddof=1) if len(cov) > 1 else 0:.1f} %"
+                  + f" (first 10 seeds {cov[:10].mean():.1f} %); raw {raw.mean():.2f} %")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
