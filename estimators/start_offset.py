@@ -24,20 +24,22 @@ Gauss-Markov surrogates of the three parts:
 The corrected estimate x + g b^ has the error d - g (b - b^), whose variance is
 s^2(t) + g^2 P_bb - 2 g P_db (the estimate is orthogonal to its error), in place of
 s^2(t) + g^2 sigma_0^2 without the correction. The surrogates are approximations: the ISO
-band has no content below n_min V, the OU road has some, so P_bb errs on the large side (core
-check, ISO D, 40 km/h, 20 seeds, 10-70 s: rms raw error 5.45 mm against a reported 5.75 mm). The samples are kept, so that a change of the
-assumed class (sigma_0) re-runs the filter over them with the new prior (at most 8000 samples:
-the estimator drops the filter 400 s after the start, where g ~ 1e-8).
+band has no content below n_min V, the OU road has some, so P_bb errs on the large side
+(benchmarks/std_calibration.py: ISO D, 40 km/h, seeds 1-20, 10-70 s, rms raw error 5.45 mm
+against a reported 5.75 mm). The samples are kept, so that a change of the assumed class
+(sigma_0) re-runs the filter over them with the new prior (at most 8000 samples, 320 kB: the
+estimator drops the filter 400 s after the start, where g ~ 1e-8).
 
 ``SuspensionEstimator`` shifts body, wheel and road positions by g(t) b^ (the deflections are
-unchanged); the velocities are not shifted (the rate |g'(t)| b^ <= 2 zeta_ref w_ref b^ = 0.09 b^ per s,
-3 mm/s for b^ = 30 mm, the ISO D height std).
-A re-filter after a mass rebuild changes road estimates already sampled here; they are not
-re-taken. MME&KF keeps its uncorrected estimate and the prior term g^2 sigma_0^2.
+unchanged). The velocities are not shifted: the rate |g'(t)| b^ <= 2 zeta_ref w_ref b^, 0.09 b^
+per s (3 mm/s for b^ = 30 mm, the ISO D height std). A re-filter after a mass rebuild changes
+road estimates already sampled here; they are not re-taken. MME&KF keeps its uncorrected
+estimate and the prior term g^2 sigma_0^2.
 """
 from __future__ import annotations
 
 import math
+from array import array
 
 SAMPLE_INTERVAL = 0.05  # s between the samples of x the filter takes
 OBS_VAR = 1e-8  # m^2, a (0.1 mm)^2 floor under the observation of x
@@ -53,7 +55,7 @@ class StartOffset:
         self.n_min = float(n_min)
         self.tau_d = 1.0 / (2.0 * math.pi * f_ref)
         self.d0_var = float(d0_var)
-        self.samples: list[tuple[float, float, float, float, float]] = []  # (t, x, V, s^2, g)
+        self.samples = array("d")  # (t, x, V, s^2, g) after each other: 40 bytes a sample
         self._restart(float(sigma0))
 
     def _restart(self, sigma0: float) -> None:
@@ -76,17 +78,18 @@ class StartOffset:
 
     def due(self, t: float, h: float) -> bool:
         """True when a sample of x is due at t (s) with the step h (s)."""
-        return t >= (len(self.samples) + 1) * SAMPLE_INTERVAL - 0.5 * h
+        return t >= (len(self.samples) // 5 + 1) * SAMPLE_INTERVAL - 0.5 * h
 
     def add(self, t: float, x: float, speed: float, s2: float, g: float, sigma0: float) -> None:
         """Take the sample x (m) of the road estimate at t (s) since the start, at speed (m/s),
         with the filter's raw-error variance s2 (m^2) then, the step response g and the road
         height std sigma0 (m) of the assumed class; a new sigma0 re-runs over the samples."""
-        self.samples.append((t, x, speed, s2, g))
+        self.samples.extend((t, x, speed, s2, g))
         if sigma0 != self.sigma0:
             self._restart(sigma0)
-            for sample in self.samples:
-                self._update(*sample)
+            v = self.samples
+            for i in range(0, len(v), 5):
+                self._update(v[i], v[i + 1], v[i + 2], v[i + 3], v[i + 4])
         else:
             self._update(t, x, speed, s2, g)
 
