@@ -20,7 +20,8 @@ class ISORoad(ContractSlave):
                 # a bare name may refer to a file shipped in the FMU's resources
                 shipped = Path(self.resources) / path
                 path = shipped if shipped.is_file() else path
-            self.road = MeasuredRoad.from_file(path)
+            self.road = MeasuredRoad.from_file(path, self.profile_units, self.profile_lateral_offset,
+                                               self.profile_end)
         else:
             if not self.n_min < self.n_max:
                 raise ValueError(f"n_min = {self.n_min!r} must be below n_max = {self.n_max!r}")

@@ -99,7 +99,7 @@ def run_scenario(scenario: Scenario, dist: Path = DIST, out: Path | None = None,
         with CoSimulation(system, parameters=parameters, inputs=inputs, record=record) as sim:
             result = sim.run(scenario.duration, scenario.step, progress=progress)
     except SimulationError as e:
-        if csv is not None and e.result is not None:
+        if csv is not None and e.result is not None and len(e.result):  # no header-only CSV
             write_csv(csv, e.result)
         raise
     if csv is not None:

@@ -86,7 +86,17 @@ ISO_ROAD: tuple[Var, ...] = (
     Var("seed", "parameter", "Integer", None, 1, "random seed of the profile: same seed, same road, at any speed",
         _SEED),
     Var("profile_file", "parameter", "String", None, "",
-        "optional measured profile (columns distance m, elevation m; CSV or whitespace); replaces the synthetic one"),
+        "optional measured profile that replaces the synthetic one: columns distance, elevation (CSV or whitespace), "
+        "ProVAL ERD text, or ASAM OpenCRG .crg (binary or ASCII); absolute elevations of any magnitude"),
+    Var("profile_units", "parameter", "String", None, "",
+        "units of profile_file: '' = from its header (else m), 'mm' = elevation unit, 'ft,in' = distance, "
+        "elevation units; any of m, cm, mm, km, ft, in"),
+    _real_param("profile_lateral_offset", "m", 0.0,
+                "OpenCRG: lateral offset v of the driven line from the reference line (left > 0)", (-100.0, 100.0)),
+    Var("profile_end", "parameter", "Integer", None, 0,
+        "past the end of profile_file: 0 = stop (doStep discards with a message), 1 = hold the last elevation, "
+        "2 = loop (the profile again, shifted by its end-to-start rise so that the road stays continuous)",
+        {0: "stop", 1: "hold", 2: "loop"}),
     _IRI_SEGMENT,
     Var("vehicle_speed", "input", "Real", "m/s", 11.1111, "forward speed (held over the step)", _SPEED),
     Var("road_height", "output", "Real", "m", None, "elevation under the tyre at the travelled distance"),
@@ -110,7 +120,9 @@ QUARTER_CAR: tuple[Var, ...] = (
     Var("acc_sampling", "parameter", "Integer", None, 0,
         "0 = accelerations sampled at the end of the step; 1 = averaged over the step (anti-alias filtered sensor)",
         {0: "end of step", 1: "average over the step"}),
-    Var("road_height", "input", "Real", "m", 0.0, "road elevation under the tyre (held over the step)", (-1e3, 1e3)),
+    Var("road_height", "input", "Real", "m", 0.0,
+        "road elevation under the tyre (held over the step); absolute levels are fine: the plant settles on the "
+        "first value and works relative to it", (-1e4, 1e4)),
     Var("sprung_mass", "input", "Real", "kg", V.m_s, "sprung mass; may change during a run (payload)",
         VEHICLE_RANGES["m_s"]),
     Var("acc_sprung", "output", "Real", "m/s2", None, "measured sprung-mass acceleration (with noise)"),
