@@ -27,6 +27,10 @@ Monte-Carlo mean of the squared error summed over the two positions, resp. the t
 
 The KF covariances do not depend on the data, so one covariance recursion serves all runs; the
 VB filter and the smoother run on stacks of runs (``vb_update`` and ``rts_smooth`` broadcast).
+
+``noise_growth``: the case the VB-AKF is for, on OUR model (estimators.model, plant.quarter_car):
+one sensor's noise std grows by a factor (a loosening mount) at some instant; the VB-AKF (nominal
+R = the initial noise) against the KF that keeps the nominal R.
 """
 from __future__ import annotations
 
@@ -36,10 +40,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.vb_akf import DOF, N_ITER, RHO, TAU, vb_update
+from estimators.kalman import LinearKF
+from estimators.model import DiscreteModel
+from estimators.vb_akf import DOF, N_ITER, RHO, TAU, VBAKF, vb_update
 from harness.smoothing import FilterRecord, rts_smooth
-from plant.quarter_car import discretise
-from plant.vehicle import Vehicle
+from plant import iso8608
+from plant.quarter_car import QuarterCar, SensorNoise, discretise
+from plant.road import SyntheticRoad
+from plant.vehicle import DEFAULT_VEHICLE, Vehicle
 
 PAPER_VEHICLE = Vehicle(m_s=250.0, m_u=30.0, k_s=1.0e4, k_t=1.0e5, c_s=1000.0)
 TS = 0.01  # s
@@ -168,18 +176,18 @@ def squared_errors(x: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray
 def armse_table(runs: int, seed: int = 1, chunk: int = 250, n_iter: int = N_ITER,
                 progress=None) -> dict:
     """ARMSE (position m, velocity m/s) of every row on every stretch over ``runs`` Monte-Carlo
-    runs (module doc). Returns {"rows": {row: {"pos": [..], "vel": [..]}}, "runs", "seconds"}."""
+    runs (module doc), simulated ``chunk`` at a time. Returns {"rows": {row: {"pos": [..],
+    "vel": [..]}}, "se_change_pct": the standard error of each row's change against KFNCM in %
+    from batch means over the chunks (None with fewer than 4 chunks), "runs", "seconds", ...}."""
     F, B, H = paper_model()
     scn = paper_scenario()
     # the process noise INTO step k is B w_k-1: Q[k] = B B' Q_k-1 (Q[0] unused)
     BB = np.outer(B, B)
     Q_nom = np.concatenate([[0.0], scn.Q_nominal[:-1]])[:, None, None] * BB
     Q_true = np.concatenate([[0.0], scn.Q_true[:-1]])[:, None, None] * BB
-    K = len(scn.classes)
-    sums = {r: [np.zeros(K), np.zeros(K)] for r in ROWS}
+    chunks = []  # per chunk: {row: (sum of squared position errors (K,), velocity (K,))}, runs
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
-    # the KF covariances (and so the gains) are those of every run: computed on the first chunk
     done = 0
     while done < runs:
         b = min(chunk, runs - done)
@@ -193,17 +201,80 @@ def armse_table(runs: int, seed: int = 1, chunk: int = 250, n_iter: int = N_ITER
             "KFNCM + RTS": rts_smooth(FilterRecord(xn, Pn, F, Q_nom))[0],
             "KFTCM + RTS": rts_smooth(FilterRecord(xt, Pt, F, Q_true))[0],
         }
-        for r, x in est.items():
-            p, v = squared_errors(x, X)
-            sums[r][0] += p
-            sums[r][1] += v
+        chunks.append(({r: squared_errors(x, X) for r, x in est.items()}, b))
         done += b
         if progress:
             progress(done, runs)
-    table = {}
-    for r in ROWS:
-        pos, vel = sums[r][0] / runs, sums[r][1] / runs
-        table[r] = {"pos": [float(np.sqrt(pos[s].mean())) for s in scn.scored],
-                    "vel": [float(np.sqrt(vel[s].mean())) for s in scn.scored]}
-    return {"rows": table, "runs": runs, "seed": seed, "n_iter": n_iter,
-            "stretches": list(STRETCHES), "seconds": time.perf_counter() - t0}
+
+    def armse(parts):
+        n = sum(b for _, b in parts)
+        out = {}
+        for r in ROWS:
+            pos = sum(c[r][0] for c, _ in parts) / n
+            vel = sum(c[r][1] for c, _ in parts) / n
+            out[r] = {"pos": [float(np.sqrt(pos[s].mean())) for s in scn.scored],
+                      "vel": [float(np.sqrt(vel[s].mean())) for s in scn.scored]}
+        return out
+
+    table = armse(chunks)
+    # Monte-Carlo standard error of each change against KFNCM (%), by batch means over the chunks
+    se = None
+    if len(chunks) >= 4:
+        per = [armse([c]) for c in chunks]
+        se = {r: {key: [float(np.std([100 * (p[r][key][j] / p["KFNCM"][key][j] - 1) for p in per],
+                                     ddof=1) / math.sqrt(len(per))) for j in range(len(scn.scored))]
+                  for key in ("pos", "vel")} for r in ROWS}
+    return {"rows": table, "se_change_pct": se, "runs": runs, "seed": seed, "n_iter": n_iter,
+            "chunk": chunk, "stretches": list(STRETCHES), "seconds": time.perf_counter() - t0}
+
+
+GROWTH_STATES = ("z_s - z_u", "z_u - z_r", "v_s", "v_u")
+
+
+def noise_growth(seed: int = 1, sensor: int = 0, factor: float = 4.0, tau: float = math.inf,
+                 n_iter: int = N_ITER, T: float = 12.0, h: float = 5e-3, t_change: float = 4.0,
+                 road_class: int = 3, speed: float = 40 / 3.6) -> dict:
+    """Sensor ``sensor`` (0 a_s, 1 a_u, 2 deflection) of the plant (default vehicle and
+    SensorNoise, ISO ``road_class`` road ``seed``, ``speed`` m/s, step h s) gets ``factor`` times
+    its noise std from ``t_change`` s on. The KF (LinearKF) and the VB-AKF (``tau``, ``n_iter``,
+    the default rho and dof) run on the 6-state model with the road held over the step, both
+    assuming the initial R, from P_0 = 1e-6 I. Scored from 1 s after the change (R memory
+    55 steps = 0.28 s) to T: RMSE of GROWTH_STATES for both filters ("kf", "vb"), and the VB's
+    estimated std of the sensor (mean of sqrt(R_hat)) over [t_change / 2, t_change) ("before")
+    and over the scored time ("after"), with the true stds ("true_before", "true_after")."""
+    nominal = SensorNoise()
+    stds = [nominal.acc_sprung, nominal.acc_unsprung, nominal.deflection]
+    grown = list(stds)
+    grown[sensor] *= factor
+    grown_noise = SensorNoise(*grown)
+    model = DiscreteModel.build(DEFAULT_VEHICLE, speed, iso8608.class_psd_n0(road_class), h,
+                                road_hold=True)
+    R = np.diag(stds) ** 2
+    P0 = np.eye(6) * 1e-6
+    kf = LinearKF(6, 3)
+    kf.F, kf.Q, kf.H, kf.R, kf.P = model.Phi, model.Q, model.H, R, P0.copy()
+    vb = VBAKF(model.Phi, model.Q, model.H, R, P0=P0, tau=tau, n_iter=n_iter)
+    road = SyntheticRoad(iso8608.class_psd_n0(road_class), seed=seed)
+    car = QuarterCar(DEFAULT_VEHICLE, nominal, noise_seed=100 + seed)
+    D = np.array([[1, 0, -1, 0, 0, 0], [0, 0, 1, 0, -1, 0], [0, 1, 0, 0, 0, 0], [0, 0, 0, 1, 0, 0.0]])
+    n = int(round(T / h))
+    err = np.empty((2, n, 4))
+    r_std = np.empty(n)
+    for k in range(n):
+        if k * h >= t_change:
+            car.noise = grown_noise
+        car.step(road.height(speed * k * h), h)
+        x = car.x
+        truth = np.array([x[0] - x[2], x[2] - car.road, x[1], x[3]])
+        z = np.array(car.measured)
+        kf.predict()
+        kf.update(z)
+        vb.step(z)
+        err[0, k] = D @ kf.x - truth
+        err[1, k] = D @ vb.x - truth
+        r_std[k] = math.sqrt(vb.R_estimate[sensor, sensor])
+    k0, k1 = int(round(t_change / h)), int(round((t_change + 1.0) / h))
+    rmse = np.sqrt(np.mean(err[:, k1:] ** 2, axis=1))
+    return {"kf": rmse[0], "vb": rmse[1], "before": float(r_std[k0 // 2:k0].mean()),
+            "after": float(r_std[k1:].mean()), "true_before": stds[sensor],
+            "true_after": grown[sensor]}
