@@ -13,8 +13,9 @@ whose noise grows, and the step cost of the VB core.
   only), RMSE over 5..12 s and the VB's estimated std of that sensor.
 - Timing: µs per ``step`` of VBAKF with N = 6 and N = 1 and of LinearKF (predict + update) on
   the paper's 4-state model and on our 6-state model: the fastest of 7 passes of
-  ``--timing-steps`` steps (garbage collector off, BLAS threads pinned to 1). The minimum, as
-  ``timeit`` advises: on a shared machine the median measures the other load as well.
+  ``--timing-steps`` steps in process CPU time (garbage collector off, BLAS threads pinned to 1).
+  CPU time and the minimum, because on a shared machine wall time and the median measure the
+  other load as well.
 
 Exits non-zero with a one-line reason on bad arguments.
 """
@@ -89,16 +90,16 @@ def _growth(seeds: int) -> tuple[str, list]:
 
 
 def _time_steps(f, Z: np.ndarray, repeat: int = 7) -> float:
-    """Fastest µs per step over ``repeat`` passes of f().step(z) over Z (after a warm-up pass)."""
+    """Fastest CPU µs per step over ``repeat`` passes of f().step(z) over Z (after a warm-up)."""
     times = []
     for i in range(repeat + 1):
         obj = f()
         step = obj.step
         gc.disable()
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         for z in Z:
             step(z)
-        dt = time.perf_counter() - t0
+        dt = time.process_time() - t0
         gc.enable()
         if i:
             times.append(dt / len(Z) * 1e6)
@@ -164,7 +165,7 @@ def main(argv: list[str] | None = None) -> int:
         print(text)
     if a.timing_steps:
         out["timing_us"] = _timing(a.timing_steps)
-        print(f"\n## µs per step (fastest of 7 passes of {a.timing_steps} steps)\n")
+        print(f"\n## CPU µs per step (fastest of 7 passes of {a.timing_steps} steps)\n")
         names = list(next(iter(out["timing_us"].values())))
         print("| model | " + " | ".join(names) + " |")
         print("|---" * (1 + len(names)) + "|")
