@@ -73,19 +73,19 @@ def _table(res: dict) -> str:
 def _growth(seeds: int) -> tuple[str, list]:
     out = []
     lines = ["| seed | filter | " + " | ".join(f"RMSE {s}" for s in GROWTH_STATES)
-             + " | std(a_s) est. before / after (true 0.02 / 0.08 m/s^2) |",
-             "|---" * (3 + len(GROWTH_STATES)) + "|"]
+             + " | std(a_s) est. before / after (true 0.02 / 0.08 m/s^2) | std(a_u) est. after (true 0.2 m/s^2) |",
+             "|---" * (4 + len(GROWTH_STATES)) + "|"]
     for seed in range(1, seeds + 1):
         for tau in (TAU, math.inf):
             r = noise_growth(seed=seed, tau=tau)
             out.append({"seed": seed, "tau": tau, **{k: (v.tolist() if isinstance(v, np.ndarray) else v)
                                                      for k, v in r.items()}})
             if tau == TAU:
-                lines.append(f"| {seed} | KF (nominal R) | " + " | ".join(f"{e:.3g}" for e in r["kf"]) + " | - |")
+                lines.append(f"| {seed} | KF (nominal R) | " + " | ".join(f"{e:.3g}" for e in r["kf"]) + " | - | - |")
             ratio = r["vb"] / r["kf"]
             lines.append(f"| {seed} | VB tau = {tau:g} | "
                          + " | ".join(f"{e:.3g} ({q:.2f}x)" for e, q in zip(r["vb"], ratio))
-                         + f" | {r['before']:.4f} / {r['after']:.4f} |")
+                         + f" | {r['before']:.4f} / {r['after']:.4f} | {r['after_all'][1]:.3f} |")
     return "\n".join(lines), out
 
 

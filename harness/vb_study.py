@@ -241,7 +241,9 @@ def noise_growth(seed: int = 1, sensor: int = 0, factor: float = 4.0, tau: float
     assuming the initial R, from P_0 = 1e-6 I. Scored from 1 s after the change (R memory
     55 steps = 0.28 s) to T: RMSE of GROWTH_STATES for both filters ("kf", "vb"), and the VB's
     estimated std of the sensor (mean of sqrt(R_hat)) over [t_change / 2, t_change) ("before")
-    and over the scored time ("after"), with the true stds ("true_before", "true_after")."""
+    and over the scored time ("after"), with the true stds ("true_before", "true_after"); the
+    estimated stds of all three sensors over the scored time ("after_all") and the true ones
+    ("true_all")."""
     nominal = SensorNoise()
     stds = [nominal.acc_sprung, nominal.acc_unsprung, nominal.deflection]
     grown = list(stds)
@@ -259,7 +261,7 @@ def noise_growth(seed: int = 1, sensor: int = 0, factor: float = 4.0, tau: float
     D = np.array([[1, 0, -1, 0, 0, 0], [0, 0, 1, 0, -1, 0], [0, 1, 0, 0, 0, 0], [0, 0, 0, 1, 0, 0.0]])
     n = int(round(T / h))
     err = np.empty((2, n, 4))
-    r_std = np.empty(n)
+    r_std = np.empty((n, 3))
     for k in range(n):
         if k * h >= t_change:
             car.noise = grown_noise
@@ -272,9 +274,10 @@ def noise_growth(seed: int = 1, sensor: int = 0, factor: float = 4.0, tau: float
         vb.step(z)
         err[0, k] = D @ kf.x - truth
         err[1, k] = D @ vb.x - truth
-        r_std[k] = math.sqrt(vb.R_estimate[sensor, sensor])
+        r_std[k] = np.sqrt(np.diag(vb.R_estimate))
     k0, k1 = int(round(t_change / h)), int(round((t_change + 1.0) / h))
     rmse = np.sqrt(np.mean(err[:, k1:] ** 2, axis=1))
-    return {"kf": rmse[0], "vb": rmse[1], "before": float(r_std[k0 // 2:k0].mean()),
-            "after": float(r_std[k1:].mean()), "true_before": stds[sensor],
-            "true_after": grown[sensor]}
+    return {"kf": rmse[0], "vb": rmse[1], "before": float(r_std[k0 // 2:k0, sensor].mean()),
+            "after": float(r_std[k1:, sensor].mean()), "true_before": stds[sensor],
+            "true_after": grown[sensor], "after_all": r_std[k1:].mean(axis=0),
+            "true_all": np.array(grown)}
