@@ -43,9 +43,9 @@ Choices where the paper is silent or differs from its code (the code is followed
 - rho = 1 - e^-4 gives an R memory of 1 / (1 - rho) = 55 steps; tau = 0.8; N = 6.
 - tau = inf switches the PECM adaptation off (Sigma = P^- in every iteration): the R-only
   VB-AKF of Sarkka and Nummenmaa (IEEE TAC 2009), the paper's "VBAKF-R" comparison filter up to
-  its choice of the R forgetting. On our 6-state model (docs/vb-akf.md) tau = 0.8 shrinks the
-  prior towards the posterior (Sigma = (0.8 P^- + P + d d') / 1.8 < P^- on average) and loses
-  to the fixed-R KF even where R is right; tau = inf is the setting that tracks a changed R.
+  its choice of the R forgetting. On our 6-state model (docs/vb-akf.md) tau = 0.8 pulls the
+  PECM towards the posterior (Sigma = (0.8 P^- + P + d d') / 1.8), its R estimate does not
+  follow a 4x noise growth and it loses to the fixed-R KF; tau = inf tracks the changed R.
 - The covariance update is the simple form Sigma - K H Sigma (the code's), symmetrised.
 
 ``vb_update`` works on a single filter or on a stack of independent filters (leading axes:
