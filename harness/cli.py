@@ -3,10 +3,12 @@
 ``python -m harness run <scenario> [--out DIR] [--no-plots] [--dist DIR]``: prints a summary;
 writes ``<out>/<scenario>.csv`` and PNG plots (default ``results/<scenario>/``).
 
-``python -m harness paper [--seeds N] [--duration S] [--warmup S] [--step S] [--classes B,C,D]
-[--workers N] [--out DIR] [--study10ms] [--dask] [--scheduler ADDRESS] [--dist DIR]``: the papers'
-studies through the FMUs (harness/paper.py; with ``--dask`` or ``--scheduler`` on Dask through the
-sweep runner, harness/sweep.py, each worker reusing its FMU instances); prints the tables and
+``python -m harness paper [--seeds N] [--duration S] [--warmup S] [--step S]
+[--classes B,C,D] [--workers N] [--out DIR] [--study10ms] [--class-study N] [--dask]
+[--scheduler ADDRESS] [--dist DIR]``: the papers' studies through the FMUs (one module each in
+harness/studies/, named in its registry; with ``--dask`` or
+``--scheduler`` on Dask through the sweep runner, harness/sweep.py, each worker reusing its FMU
+instances); prints the tables and
 targets as markdown, writes ``<out>/paper_tables.md``, ``<out>/paper_runs.json`` and PNG plots
 (default ``results/paper/``). Exits 1 if any run failed (after reporting it and finishing the
 others).
@@ -58,7 +60,8 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _paper(args: argparse.Namespace) -> int:
-    from .paper import PaperStudy, parse_classes
+    from .studies.runner import parse_classes
+    from .studies.suite import PaperStudy
 
     study = PaperStudy(seeds=args.seeds, duration=args.duration, warmup=args.warmup, step=args.step,
                        classes=parse_classes(args.classes), workers=args.workers, study10ms=args.study10ms,
