@@ -3,16 +3,20 @@
     python build.py [--dist DIR] [--force] [NAME ...]
     python build.py --docs          # write docs/fmu-interface.md and the README's FMU table
 
-
 Every FMU bundles the plain-Python core (plant/, estimators/) and the adapter package
 fmu_src/suspension_fmi/. With all three FMUs built, it also writes the fmucontainer wiring file
 SuspensionSystem.csv and builds the container FMU SuspensionSystem.fmu from it
-(harness/container.py). Exits non-zero with the reason if a build fails.
+(harness/container.py). An FMU is rebuilt only when its sources or build options changed: a hash
+of them per FMU is kept in dist/.build-stamps.json (``--force`` rebuilds all). Exits non-zero
+with the reason if a build fails.
 """
 from __future__ import annotations
 
 import argparse
+import hashlib
+import json
 import sys
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent
@@ -26,13 +30,53 @@ FMUS: dict[str, tuple[str, ...]] = {
 }
 
 
-def build(dist: Path, names: list[str] | None = None) -> list[Path]:
-    from pythonfmu.builder import FmuBuilder
+# FmuBuilder options of every FMU (capability flags of the model description)
+BUILD_OPTIONS = {"needsExecutionTool": "true", "canHandleVariableCommunicationStepSize": "true",
+                 "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true"}
+STAMPS = ".build-stamps.json"
 
+
+def _version(dist_name: str) -> str:
+    try:
+        return version(dist_name)
+    except PackageNotFoundError:
+        return "none"
+
+
+def source_hash(paths: list[Path], options: dict) -> str:
+    """SHA-256 of ``options`` and of every file under ``paths`` (name and content; compiled Python
+    left out): what a build's output depends on."""
+    h = hashlib.sha256(json.dumps(options, sort_keys=True).encode())
+    for top in paths:
+        files = [top] if top.is_file() else sorted(f for f in top.rglob("*") if f.is_file())
+        for f in files:
+            if "__pycache__" in f.parts or f.suffix == ".pyc":
+                continue
+            h.update(f.relative_to(top.parent).as_posix().encode() + b"\0")
+            h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+def read_stamps(dist: Path) -> dict[str, str]:
+    try:
+        return json.loads((dist / STAMPS).read_text())
+    except (OSError, ValueError):
+        return {}
+
+
+def write_stamps(dist: Path, stamps: dict[str, str]) -> None:
+    (dist / STAMPS).write_text(json.dumps(stamps, indent=1, sort_keys=True) + "\n")
+
+
+def build(dist: Path, names: list[str] | None = None, force: bool = False) -> list[Path]:
+    """Build the FMUs ``names`` (default all) into ``dist``, each only if its stamp differs (or
+    ``force``). Returns the FMU files, built or up to date."""
     unknown = sorted(set(names or ()) - set(FMUS))
     if unknown:
         raise ValueError(f"unknown FMU name(s) {', '.join(unknown)}; known: {', '.join(FMUS)}")
     dist.mkdir(parents=True, exist_ok=True)
+    stamps = read_stamps(dist)
+    options = {**BUILD_OPTIONS, "pythonfmu": _version("pythonfmu")}
     built = []
     for name, packages in FMUS.items():
         if names and name not in names:
@@ -42,12 +86,40 @@ def build(dist: Path, names: list[str] | None = None) -> list[Path]:
             print(f"skip {name}: {script.relative_to(ROOT)} does not exist yet")
             continue
         files = [SRC / "suspension_fmi", *(ROOT / p for p in packages)]
-        out = FmuBuilder.build_FMU(script, dest=dist, project_files=files,
-                                   needsExecutionTool="true", canHandleVariableCommunicationStepSize="true",
-                                   canGetAndSetFMUstate="true", canSerializeFMUstate="true")
-        print(f"built {out.relative_to(ROOT) if out.is_relative_to(ROOT) else out}")
-        built.append(Path(out))
+        out = dist / f"{name}.fmu"
+        key = source_hash([script, *files], options)
+        if not force and out.is_file() and stamps.get(name) == key:
+            print(f"{name}.fmu is up to date")
+        else:
+            from pythonfmu.builder import FmuBuilder
+
+            stamps.pop(name, None)
+            write_stamps(dist, stamps)  # an interrupted build leaves no stamp that claims otherwise
+            out = Path(FmuBuilder.build_FMU(script, dest=dist, project_files=files, **BUILD_OPTIONS))
+            stamps[name] = key
+            write_stamps(dist, stamps)
+            print(f"built {out.relative_to(ROOT) if out.is_relative_to(ROOT) else out}")
+        built.append(out)
     return built
+
+
+def build_container_if_changed(dist: Path, force: bool = False) -> tuple[Path, bool]:
+    """``dist/SuspensionSystem.fmu`` from the three FMUs (harness/container.py), rebuilt only when
+    one of them, container.py or fmu-manipulation-toolbox changed. Returns (file, rebuilt)."""
+    from harness.container import CONTAINER, build_container
+
+    stamps = read_stamps(dist)
+    key = source_hash([ROOT / "harness" / "container.py"],
+                      {"fmus": [stamps.get(n) for n in FMUS], "toolbox": _version("fmu-manipulation-toolbox")})
+    out = dist / f"{CONTAINER}.fmu"
+    if not force and out.is_file() and stamps.get(CONTAINER) == key:
+        return out, False
+    stamps.pop(CONTAINER, None)
+    write_stamps(dist, stamps)
+    out = build_container(dist)
+    stamps[CONTAINER] = key
+    write_stamps(dist, stamps)
+    return out, True
 
 
 # -- the variable contract as documentation -------------------------------------------------
@@ -152,6 +224,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dist", type=Path, default=ROOT / "dist", help="output folder (default dist/)")
     ap.add_argument("names", nargs="*", help="model identifiers to build (default all)")
+    ap.add_argument("--force", action="store_true", help="rebuild even what is up to date")
     ap.add_argument("--docs", action="store_true",
                     help="write docs/fmu-interface.md and the README's FMU table from the contract, build nothing")
     args = ap.parse_args(argv)
@@ -161,19 +234,16 @@ def main(argv: list[str] | None = None) -> int:
             for p in write_docs():
                 print(f"wrote {p.relative_to(ROOT)}")
             return 0
-        build(args.dist, args.names)
-        try:
-            from harness.ssp import write_system_ssps
-        except ImportError:
-            write_system_ssps = None
-        if write_system_ssps is not None and not args.names:
-            for p in write_system_ssps(args.dist):
-                print(f"wrote {p.name}")
-        if not args.names and all((args.dist / f"{n}.fmu").is_file() for n in FMUS):
-            from harness.container import build_container
+        built = build(args.dist, args.names, force=args.force)
+        if args.names:
+            return 0
+        from harness.ssp import write_system_ssps
 
-            out = build_container(args.dist)
-            print(f"wrote {out.with_suffix('.csv').name}, built {out.name}")
+        for p in write_system_ssps(args.dist):
+            print(f"wrote {p.name}")
+        if len(built) == len(FMUS):
+            out, rebuilt = build_container_if_changed(args.dist, force=args.force)
+            print(f"wrote {out.with_suffix('.csv').name}, built {out.name}" if rebuilt else f"{out.name} is up to date")
     except Exception as e:  # noqa: BLE001 - one line for the user, non-zero exit
         print(f"build failed: {type(e).__name__}: {e}", file=sys.stderr)
         return 1

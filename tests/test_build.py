@@ -109,14 +109,41 @@ def test_model_description_follows_the_written_contract(dist, name):
                 assert (var.start or "") == start.strip('"'), vname
 
 
-def test_rebuild_is_idempotent(dist, tmp_path):
-    for _ in range(2):
-        proc = subprocess.run([sys.executable, str(ROOT / "build.py"), "--dist", str(tmp_path), "ISORoad"],
-                              capture_output=True, text=True)
-        assert proc.returncode == 0, proc.stderr
-    with zipfile.ZipFile(tmp_path / "ISORoad.fmu") as a, zipfile.ZipFile(dist / "ISORoad.fmu") as b:
+def _build(*args) -> subprocess.CompletedProcess:
+    proc = subprocess.run([sys.executable, str(ROOT / "build.py"), *map(str, args)], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    return proc
+
+
+def test_rebuild_is_idempotent_and_only_when_something_changed(dist, tmp_path):
+    _build("--dist", tmp_path, "ISORoad")
+    fmu = tmp_path / "ISORoad.fmu"
+    first = fmu.stat().st_mtime_ns
+    assert "ISORoad.fmu is up to date" in _build("--dist", tmp_path, "ISORoad").stdout
+    assert fmu.stat().st_mtime_ns == first
+    with zipfile.ZipFile(fmu) as a, zipfile.ZipFile(dist / "ISORoad.fmu") as b:
         assert a.read("modelDescription.xml") == b.read("modelDescription.xml")
         assert sorted(a.namelist()) == sorted(b.namelist())
+    # a stamp that no longer matches the sources (as after an edit) rebuilds, and so does --force
+    stamps = tmp_path / build_script.STAMPS
+    stamps.write_text(stamps.read_text().replace('"ISORoad": "', '"ISORoad": "0'))
+    assert "built" in _build("--dist", tmp_path, "ISORoad").stdout
+    assert "built" in _build("--dist", tmp_path, "--force", "ISORoad").stdout
+
+
+def test_source_hash_follows_content_names_and_options(tmp_path):
+    pkg = tmp_path / "pkg"
+    (pkg / "__pycache__").mkdir(parents=True)
+    (pkg / "a.py").write_text("x = 1\n")
+    h = build_script.source_hash([pkg], {"o": 1})
+    (pkg / "__pycache__" / "a.cpython-311.pyc").write_bytes(b"compiled")
+    assert build_script.source_hash([pkg], {"o": 1}) == h
+    assert build_script.source_hash([pkg], {"o": 2}) != h
+    (pkg / "a.py").write_text("x = 2\n")
+    edited = build_script.source_hash([pkg], {"o": 1})
+    assert edited != h
+    (pkg / "a.py").rename(pkg / "b.py")
+    assert build_script.source_hash([pkg], {"o": 1}) not in (h, edited)
 
 
 def test_failing_build_exits_non_zero_with_the_reason(tmp_path):
