@@ -130,7 +130,7 @@ def summary(run: Run) -> list[str]:
         from . import metrics
 
         t = r["time"]
-        warmup = min(metrics.WARMUP, 0.5 * (t[-1] - t[0]))
+        warmup = metrics.warmup_for(t)
         std = r["SuspensionEstimator.road_height_std"] if "SuspensionEstimator.road_height_std" in r.dtype.names else None
         try:
             s = metrics.road_scores(t, r["SuspensionEstimator.road_height_est"], r["ISORoad.road_height"], std,
