@@ -1,4 +1,4 @@
-"""The README's Python examples run as written, against the FMUs built for this test session
+"""The README's Python examples run as written, against the FMUs the tests build
 (``dist/`` in the text is replaced by their folder), in a process of their own."""
 from __future__ import annotations
 
