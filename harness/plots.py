@@ -107,7 +107,6 @@ def plot_result(result: np.ndarray, out: Path, name: str, warmup: float | None =
         return scale * np.asarray(result[n], float)
 
     est_prefix = "SuspensionEstimator."
-    with_estimator = any(c.startswith(est_prefix) for c in cols)
 
     if has("ISORoad.road_height"):
         fig, ax = _figure(f"{name}: road under the tyre", 1)
@@ -226,7 +225,7 @@ def plot_result(result: np.ndarray, out: Path, name: str, warmup: float | None =
         ax[1, 0].set_ylabel("error (%)")
         files.append(_save(fig, out / f"{name}_sprung_mass.png"))
 
-    if with_estimator and has(est_prefix + "road_height_est", "ISORoad.road_height", "ISORoad.distance"):
+    if has(est_prefix + "road_height_est", "ISORoad.road_height", "ISORoad.distance"):
         path = _road_psd(result, out / f"{name}_road_psd.png", name, warmup)
         if path is not None:
             files.append(path)
