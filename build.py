@@ -1,26 +1,38 @@
 """Build the project's FMUs into dist/ and write the SSP systems that wire them.
 
-    python build.py [--dist DIR] [--force] [NAME ...]
+    python build.py [--dist DIR] [--force] [--version VERSION] [NAME ...]
     python build.py --docs          # write docs/fmu-interface.md and the README's FMU table
 
 Every FMU bundles the plain-Python core (plant/, estimators/) and the adapter package
-fmu_src/suspension_fmi/. With all three FMUs built, it also writes the fmucontainer wiring file
-SuspensionSystem.csv and builds the container FMU SuspensionSystem.fmu from it
-(harness/container.py). An FMU is rebuilt only when its sources or build options changed: a hash
-of them per FMU is kept in dist/.build-stamps.json (``--force`` rebuilds all). Exits non-zero
-with the reason if a build fails.
+fmu_src/suspension_fmi/ under a package name private to its build,
+``_suspension_estimation_<version>_<8 hex of its sources' hash>`` (``private_name``), and its
+script as the module ``<that name>_<model identifier>``: a user's own modules named plant,
+estimators, harness or suspension_fmi cannot shadow them, and FMUs of two builds load side by
+side in one process. The version is pyproject.toml's unless ``--version`` says otherwise. With all three
+FMUs built, it also writes the fmucontainer wiring file SuspensionSystem.csv and builds the
+container FMU SuspensionSystem.fmu from it (harness/container.py). An FMU is rebuilt only when
+its sources, the private name or the build options changed: a hash of them per FMU is kept in
+dist/.build-stamps.json (``--force`` rebuilds all). Exits non-zero with the reason if a build
+fails.
 """
 from __future__ import annotations
 
 import argparse
 import hashlib
 import json
+import re
+import shutil
 import sys
+import tempfile
+import tomllib
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent
 SRC = ROOT / "fmu_src"
+PACKAGE = "suspension_estimation"  # the import package of the distribution (pyproject.toml)
+# subpackage bundled into the FMUs -> its source folder
+SOURCES = {"plant": ROOT / "plant", "estimators": ROOT / "estimators", "suspension_fmi": SRC / "suspension_fmi"}
 
 # model identifier -> packages it bundles besides the adapter package
 FMUS: dict[str, tuple[str, ...]] = {
@@ -57,6 +69,53 @@ def source_hash(paths: list[Path], options: dict) -> str:
     return h.hexdigest()
 
 
+def project_version() -> str:
+    """The version in pyproject.toml."""
+    return tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["version"]
+
+
+def bundled(name: str) -> list[Path]:
+    """The FMU script of model ``name`` and the source folders it bundles."""
+    return [SRC / f"{name}.py", *(SOURCES[p] for p in ("suspension_fmi", *FMUS[name]))]
+
+
+def private_name(name: str, version_string: str) -> str:
+    """The package name FMU ``name`` bundles its sources under:
+    ``_suspension_estimation_<version>_<first 8 hex of the SHA-256 of its script and the sources it
+    bundles>`` (a character of the version other than a letter, digit or _ becomes _).
+
+    One name per FMU, not one shared by the FMUs of a build: a host may delete an FMU's folder
+    once it is done with it (``fmpy.simulate_fmu`` does), and a package shared with an FMU loaded
+    later would then be looked up in that deleted folder."""
+    if not version_string.strip():
+        raise ValueError("the version string is empty")
+    digest = source_hash(bundled(name), {})[:8]
+    return f"_{PACKAGE}_{re.sub(r'[^0-9A-Za-z_]', '_', version_string)}_{digest}"
+
+
+_IMPORT = re.compile(rf"^(\s*(?:from|import)\s+){PACKAGE}(?=[.\s])", re.MULTILINE)
+_PLAIN = re.compile(r"^\s*(?:from|import)\s+(?:plant|estimators|harness|suspension_fmi)\b", re.MULTILINE)
+
+
+def stage(script: Path, packages: list[Path], private: str, version_string: str, into: Path) -> Path:
+    """Write into ``into`` the FMU script of ``script`` importing ``private`` instead of
+    suspension_estimation (as ``<private>_<script name>``) and the package ``private`` holding
+    the source folders ``packages``. Returns the script written."""
+    text, n = _IMPORT.subn(rf"\g<1>{private}", script.read_text())
+    if n == 0 or re.search(rf"\b{PACKAGE}\b", text) or _PLAIN.search(text):
+        raise ValueError(f"{script.name} must import the project only as `from {PACKAGE}.<sub> import ...`")
+    pkg = into / private
+    pkg.mkdir(parents=True)
+    (pkg / "__init__.py").write_text(
+        f'"""suspension-estimation-fmu {version_string}: the sources bundled in this FMU, under a name '
+        f'private to its build."""\n__version__ = {version_string!r}\n')
+    for folder in packages:
+        shutil.copytree(folder, pkg / folder.name, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+    out = into / f"{private}_{script.name}"
+    out.write_text(text)
+    return out
+
+
 def read_stamps(dist: Path) -> dict[str, str]:
     try:
         return json.loads((dist / STAMPS).read_text())
@@ -68,34 +127,35 @@ def write_stamps(dist: Path, stamps: dict[str, str]) -> None:
     (dist / STAMPS).write_text(json.dumps(stamps, indent=1, sort_keys=True) + "\n")
 
 
-def build(dist: Path, names: list[str] | None = None, force: bool = False) -> list[Path]:
+def build(dist: Path, names: list[str] | None = None, force: bool = False,
+          version_string: str | None = None) -> list[Path]:
     """Build the FMUs ``names`` (default all) into ``dist``, each only if its stamp differs (or
-    ``force``). Returns the FMU files, built or up to date."""
+    ``force``), each bundling its sources as ``private_name(name, version_string)`` (default
+    version: pyproject.toml's). Returns the FMU files, built or up to date."""
     unknown = sorted(set(names or ()) - set(FMUS))
     if unknown:
         raise ValueError(f"unknown FMU name(s) {', '.join(unknown)}; known: {', '.join(FMUS)}")
     dist.mkdir(parents=True, exist_ok=True)
     stamps = read_stamps(dist)
+    version_string = version_string or project_version()
     options = {**BUILD_OPTIONS, "pythonfmu": _version("pythonfmu")}
     built = []
-    for name, packages in FMUS.items():
+    for name in FMUS:
         if names and name not in names:
             continue
         script = SRC / f"{name}.py"
         if not script.is_file():
             print(f"skip {name}: {script.relative_to(ROOT)} does not exist yet")
             continue
-        files = [SRC / "suspension_fmi", *(ROOT / p for p in packages)]
         out = dist / f"{name}.fmu"
-        key = source_hash([script, *files], options)
+        private = private_name(name, version_string)
+        key = source_hash(bundled(name), {**options, "package": private})
         if not force and out.is_file() and stamps.get(name) == key:
             print(f"{name}.fmu is up to date")
         else:
-            from pythonfmu.builder import FmuBuilder
-
             stamps.pop(name, None)
             write_stamps(dist, stamps)  # an interrupted build leaves no stamp that claims otherwise
-            out = Path(FmuBuilder.build_FMU(script, dest=dist, project_files=files, **BUILD_OPTIONS))
+            out = _build_fmu(script, bundled(name)[1:], private, version_string, dist)
             stamps[name] = key
             write_stamps(dist, stamps)
             print(f"built {out.relative_to(ROOT) if out.is_relative_to(ROOT) else out}")
@@ -103,10 +163,24 @@ def build(dist: Path, names: list[str] | None = None, force: bool = False) -> li
     return built
 
 
+def _build_fmu(script: Path, packages: list[Path], private: str, version_string: str, dist: Path) -> Path:
+    from pythonfmu.builder import FmuBuilder
+
+    with tempfile.TemporaryDirectory(prefix="fmu-stage-") as tmp:
+        staged = stage(script, packages, private, version_string, Path(tmp))
+        try:
+            return Path(FmuBuilder.build_FMU(staged, dest=dist, project_files=[Path(tmp) / private], **BUILD_OPTIONS))
+        finally:
+            # pythonfmu imports the script from the staging folder and leaves it on sys.path
+            sys.path[:] = [p for p in sys.path if p != tmp]
+            for m in [m for m in sys.modules if m.split(".")[0] in (private, staged.stem)]:
+                del sys.modules[m]
+
+
 def build_container_if_changed(dist: Path, force: bool = False) -> tuple[Path, bool]:
     """``dist/SuspensionSystem.fmu`` from the three FMUs (harness/container.py), rebuilt only when
     one of them, container.py or fmu-manipulation-toolbox changed. Returns (file, rebuilt)."""
-    from harness.container import CONTAINER, build_container
+    from suspension_estimation.harness.container import CONTAINER, build_container
 
     stamps = read_stamps(dist)
     key = source_hash([ROOT / "harness" / "container.py"],
@@ -154,11 +228,8 @@ with the contract.
 
 
 def _contract():
-    """``CONTRACTS`` of fmu_src/suspension_fmi/contract.py (it imports ``plant`` from the root)."""
-    for p in (ROOT, SRC):
-        if str(p) not in sys.path:
-            sys.path.insert(0, str(p))
-    from suspension_fmi.contract import CONTRACTS, allowed_text
+    """``CONTRACTS`` of fmu_src/suspension_fmi/contract.py (the installed package)."""
+    from suspension_estimation.suspension_fmi.contract import CONTRACTS, allowed_text
 
     return CONTRACTS, allowed_text
 
@@ -225,19 +296,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--dist", type=Path, default=ROOT / "dist", help="output folder (default dist/)")
     ap.add_argument("names", nargs="*", help="model identifiers to build (default all)")
     ap.add_argument("--force", action="store_true", help="rebuild even what is up to date")
+    ap.add_argument("--version", dest="version_string", metavar="VERSION",
+                    help="version string in the FMUs' private package name (default: pyproject.toml's)")
     ap.add_argument("--docs", action="store_true",
                     help="write docs/fmu-interface.md and the README's FMU table from the contract, build nothing")
     args = ap.parse_args(argv)
-    sys.path.insert(0, str(ROOT))
     try:
         if args.docs:
             for p in write_docs():
                 print(f"wrote {p.relative_to(ROOT)}")
             return 0
-        built = build(args.dist, args.names, force=args.force)
+        built = build(args.dist, args.names, force=args.force, version_string=args.version_string)
         if args.names:
             return 0
-        from harness.ssp import write_system_ssps
+        from suspension_estimation.harness.ssp import write_system_ssps
 
         for p in write_system_ssps(args.dist):
             print(f"wrote {p.name}")

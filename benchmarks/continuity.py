@@ -21,14 +21,14 @@ sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
 
-import estimators.road_class as road_class  # noqa: E402
-import estimators.start_offset as start_offset  # noqa: E402
-from estimators.suspension import SuspensionEstimator  # noqa: E402
-from harness.testroads import add_sag, joined_iso  # noqa: E402
-from plant import iso8608  # noqa: E402
-from plant.quarter_car import QuarterCar, SensorNoise  # noqa: E402
-from plant.road import MeasuredRoad, SyntheticRoad  # noqa: E402
-from plant.vehicle import DEFAULT_VEHICLE  # noqa: E402
+import suspension_estimation.estimators.road_class as road_class  # noqa: E402
+import suspension_estimation.estimators.start_offset as start_offset  # noqa: E402
+from suspension_estimation.estimators.suspension import SuspensionEstimator  # noqa: E402
+from suspension_estimation.harness.testroads import add_sag, joined_iso  # noqa: E402
+from suspension_estimation.plant import iso8608  # noqa: E402
+from suspension_estimation.plant.quarter_car import QuarterCar, SensorNoise  # noqa: E402
+from suspension_estimation.plant.road import MeasuredRoad, SyntheticRoad  # noqa: E402
+from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE  # noqa: E402
 
 H = 1e-3
 

@@ -26,9 +26,9 @@ sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
 
-from harness.cosim import CoSimulation, System  # noqa: E402
-from harness.metrics import iri_segments  # noqa: E402
-from plant import iso8608  # noqa: E402
+from suspension_estimation.harness.cosim import CoSimulation, System  # noqa: E402
+from suspension_estimation.harness.metrics import iri_segments  # noqa: E402
+from suspension_estimation.plant import iso8608  # noqa: E402
 
 WIRES = ("acc_sprung", "acc_unsprung", "susp_deflection")
 

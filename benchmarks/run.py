@@ -19,7 +19,7 @@ from a fresh object, so it includes the start-up transient of ``--steps`` sample
   pythonfmu FMU (one Real input u, one Real output y = u) built here into a temporary folder as
   the yardstick of the FMI plumbing.
 - the closed loop road -> plant -> estimator in ``harness.cosim.CoSimulation`` (the default
-  scenario, recording what ``python -m harness run default`` records): µs per step and the
+  scenario, recording what ``python -m suspension_estimation.harness run default`` records): µs per step and the
   real-time factor (simulated time / wall time).
 
 It prints a markdown table with the ratios of issue 5 (estimator FMU round / trivial FMU round,
@@ -113,10 +113,10 @@ def bench(make, run, steps: int, repeat: int, warmup: int = 1) -> dict:
 def simulate(n: int) -> dict:
     """Road + plant in plain Python as the harness wires them: the road is evaluated at the
     distance after each step, the plant steps with it held; the plant starts settled on the road."""
-    from plant import iso8608
-    from plant.quarter_car import QuarterCar, SensorNoise
-    from plant.road import SyntheticRoad
-    from plant.vehicle import DEFAULT_VEHICLE
+    from suspension_estimation.plant import iso8608
+    from suspension_estimation.plant.quarter_car import QuarterCar, SensorNoise
+    from suspension_estimation.plant.road import SyntheticRoad
+    from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE
 
     road = SyntheticRoad(iso8608.class_psd_n0(ROAD_CLASS), seed=SEED)
     car = QuarterCar(DEFAULT_VEHICLE.with_(m_s=MASS), SensorNoise(), noise_seed=SEED)
@@ -134,7 +134,7 @@ def simulate(n: int) -> dict:
 
 # -- cores ----------------------------------------------------------------------------------------
 def estimator_configs() -> dict:
-    from estimators import EstimatorConfig
+    from suspension_estimation.estimators import EstimatorConfig
 
     return {
         "KF": EstimatorConfig(road_estimator=0, mass_estimator=0, road_class=ROAD_CLASS),
@@ -150,11 +150,11 @@ def run_estimator(est, meas) -> None:
 
 
 def bench_cores(data: dict, steps: int, repeat: int) -> dict:
-    from estimators import SuspensionEstimator
-    from estimators.mass import MassEstimator
-    from plant.quarter_car import QuarterCar, SensorNoise
-    from plant.road import SyntheticRoad
-    from plant.vehicle import DEFAULT_VEHICLE
+    from suspension_estimation.estimators import SuspensionEstimator
+    from suspension_estimation.estimators.mass import MassEstimator
+    from suspension_estimation.plant.quarter_car import QuarterCar, SensorNoise
+    from suspension_estimation.plant.road import SyntheticRoad
+    from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE
 
     meas, heights, dist = data["meas"][:steps], data["heights"][:steps], data["dist"][:steps]
     out = {}
@@ -328,10 +328,10 @@ def bench_fmus(data: dict, steps: int, repeat: int, tmp: Path, dist: Path) -> tu
 
 # -- closed loop in the harness -------------------------------------------------------------------
 def closed_loop_setup(dist: Path):
-    from harness.cosim import System
-    from harness.runner import RECORD
-    from harness.scenario import load_scenario
-    from harness.ssp import ROAD_PLANT_ESTIMATOR, SYSTEMS
+    from suspension_estimation.harness.cosim import System
+    from suspension_estimation.harness.runner import RECORD
+    from suspension_estimation.harness.scenario import load_scenario
+    from suspension_estimation.harness.ssp import ROAD_PLANT_ESTIMATOR, SYSTEMS
 
     scenario = load_scenario("default")
     order, connections, _ = SYSTEMS[ROAD_PLANT_ESTIMATOR]
@@ -344,7 +344,7 @@ def closed_loop_setup(dist: Path):
 
 
 def bench_loop(dist: Path, seconds: float, repeat: int) -> dict:
-    from harness.cosim import CoSimulation
+    from suspension_estimation.harness.cosim import CoSimulation
 
     scenario, system, parameters, inputs, record = closed_loop_setup(dist)
     n = int(round(seconds / H))
@@ -385,8 +385,8 @@ def profile_text(fn, top: int = 18) -> str:
 
 
 def profiles(data: dict, steps: int, dist: Path, tmp: Path) -> dict:
-    from estimators import SuspensionEstimator
-    from harness.cosim import CoSimulation
+    from suspension_estimation.estimators import SuspensionEstimator
+    from suspension_estimation.harness.cosim import CoSimulation
 
     meas = data["meas"][:steps]
     out = {}

@@ -43,9 +43,9 @@ sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
 
-from harness.cosim import System  # noqa: E402
-from harness.metrics import road_scores  # noqa: E402
-from harness.streaming import Stepper  # noqa: E402
+from suspension_estimation.harness.cosim import System  # noqa: E402
+from suspension_estimation.harness.metrics import road_scores  # noqa: E402
+from suspension_estimation.harness.streaming import Stepper  # noqa: E402
 
 MARGIN = 5.0  # s of samples before a scored window, for the high-pass edge transient
 CHUNK = 1.0  # s simulated per Stepper.advance call

@@ -9,7 +9,7 @@ estimate (``start_offset`` True, the default) and once without. It prints, per c
 window after the start, the rms raw road error against the rms reported ``road_height_std``
 over all seeds (a ratio near 1 is an honest std), and the 2σ coverage and raw error-STD % of
 ``harness.metrics.road_scores`` (10-70 s) as mean ± std over seeds. The cores, not the FMUs:
-the FMU runs are those of ``python -m harness paper``; this is the many-seed check behind them.
+the FMU runs are those of ``python -m suspension_estimation.harness paper``; this is the many-seed check behind them.
 """
 from __future__ import annotations
 
@@ -25,12 +25,12 @@ T, H, SPEED = 70.0, 1e-3, 40 / 3.6
 
 def run(cls: int, seed: int, start_offset: bool) -> dict:
     """One 70 s core run: per-window sums of squared error and std, and the run's scores."""
-    from estimators import SuspensionEstimator
-    from harness.metrics import road_scores
-    from plant import iso8608
-    from plant.quarter_car import QuarterCar, SensorNoise
-    from plant.road import SyntheticRoad
-    from plant.vehicle import DEFAULT_VEHICLE
+    from suspension_estimation.estimators import SuspensionEstimator
+    from suspension_estimation.harness.metrics import road_scores
+    from suspension_estimation.plant import iso8608
+    from suspension_estimation.plant.quarter_car import QuarterCar, SensorNoise
+    from suspension_estimation.plant.road import SyntheticRoad
+    from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE
 
     road = SyntheticRoad(iso8608.class_psd_n0(cls), seed=seed)
     car = QuarterCar(DEFAULT_VEHICLE, SensorNoise(0.02, 0.2, 1e-4), noise_seed=1000 + seed)

@@ -37,8 +37,8 @@ from pathlib import Path  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
-from harness.studies import runner  # noqa: E402
-from harness.sweep import Sweep, close_worker, execute, failed_rows, local_cluster, run_task  # noqa: E402
+from suspension_estimation.harness.studies import runner  # noqa: E402
+from suspension_estimation.harness.sweep import Sweep, close_worker, execute, failed_rows, local_cluster, run_task  # noqa: E402
 
 
 def _tasks(dist: Path, n: int, duration: float, first_seed: int = 1) -> list:

@@ -39,13 +39,13 @@ sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
 
-from estimators.kalman import LinearKF  # noqa: E402
-from estimators.model import DiscreteModel  # noqa: E402
-from estimators.vb_akf import TAU, VBAKF  # noqa: E402
-from harness.vb_study import (GROWTH_STATES, ROWS, STRETCHES, armse_table, noise_growth,  # noqa: E402
+from suspension_estimation.estimators.kalman import LinearKF  # noqa: E402
+from suspension_estimation.estimators.model import DiscreteModel  # noqa: E402
+from suspension_estimation.estimators.vb_akf import TAU, VBAKF  # noqa: E402
+from suspension_estimation.harness.vb_study import (GROWTH_STATES, ROWS, STRETCHES, armse_table, noise_growth,  # noqa: E402
                               paper_model, paper_scenario, simulate)
-from plant import iso8608  # noqa: E402
-from plant.vehicle import DEFAULT_VEHICLE  # noqa: E402
+from suspension_estimation.plant import iso8608  # noqa: E402
+from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE  # noqa: E402
 
 # paper 004, reductions of "the proposed filter" against KFNCM in % (position, velocity):
 # Table 3 stretch 1 (the same nominal with or without classification), Table 4 stretches 2, 3

@@ -66,8 +66,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import expm
 
-from plant.iso8608 import N0, N_MAX, N_MIN
-from plant.vehicle import Vehicle
+from ..plant.iso8608 import N0, N_MAX, N_MIN
+from ..plant.vehicle import Vehicle
 
 N_STATES = 6
 IZS, IVS, IZU, IVU, IZR, IVR = range(6)

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from plant import iso8608
+from ..plant import iso8608
 
 
 def welch_psd(q: np.ndarray, ds: float, segment: int) -> tuple[np.ndarray, np.ndarray]:

@@ -1,8 +1,8 @@
 """Steady-state (frequency-domain) analysis of the road filter: a design tool, no simulation,
 and the real raw road-error variance the estimator reports (``raw_error_variance``).
 
-    OPENBLAS_NUM_THREADS=1 .venv/bin/python -m estimators.steady_state              (old vs new design)
-    OPENBLAS_NUM_THREADS=1 .venv/bin/python -m estimators.steady_state --sampling   (acc_sampling 0 vs 1)
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python -m suspension_estimation.estimators.steady_state              (old vs new design)
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python -m suspension_estimation.estimators.steady_state --sampling   (acc_sampling 0 vs 1)
 
 For a frozen Kalman gain K the filter is the LTI system x_k = (I - K H) Phi x_{k-1} + K y_k.
 With the exact discrete plant (road held over the step, accelerations at the end of the step or
@@ -17,10 +17,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from plant import iso8608
-from plant.quarter_car import discretise as plant_discretise
-from plant.quarter_car import state_matrices
-from plant.vehicle import DEFAULT_VEHICLE, Vehicle
+from ..plant import iso8608
+from ..plant.quarter_car import discretise as plant_discretise
+from ..plant.quarter_car import state_matrices
+from ..plant.vehicle import DEFAULT_VEHICLE, Vehicle
 
 HP_CUTOFF, HP_ORDER = 0.5, 4  # as harness.metrics (not imported: estimators/ ships in the FMU)
 
@@ -160,7 +160,7 @@ def analyse(Phi, H, K, R_true, h, gd_n0, speed, vehicle=DEFAULT_VEHICLE, road_ro
 
 
 def _report_current():
-    from estimators.model import DiscreteModel, RoadModel, measurement_covariance
+    from .model import DiscreteModel, RoadModel, measurement_covariance
 
     h, V = 1e-3, 40 / 3.6
     Rm = measurement_covariance(0.02, 0.2, 1e-4)
@@ -200,7 +200,7 @@ def sweep(road=None, q_class=None, classes=(1, 2, 3, 4, 5), speeds=(10.0, 40 / 3
     ``acc_sampling`` of plant and filter alike; ``road_hold`` None = the estimator's default
     (held road in the model only with acc_sampling 1).
     Prints HP %, in-band gain, raw %, and the honesty ratio sqrt(P_zr) / true raw error."""
-    from estimators.model import DiscreteModel, RoadModel, measurement_covariance
+    from .model import DiscreteModel, RoadModel, measurement_covariance
 
     road = road or RoadModel()
     Rm = measurement_covariance(0.02, 0.2, 1e-4)
@@ -226,7 +226,7 @@ def compare_sampling(classes=(2, 3, 4), steps=(1e-2, 1e-3), speed=40 / 3.6, vehi
     step-averaged (acc_sampling 1, held road) accelerations, each with its matching model and
     the same sensor noise per sample (0.02 / 0.2 m/s^2, 0.1 mm). Returns rows
     (class, h, acc_sampling, hp %, hp signal %, hp noise %, raw %, gain, sqrt(P_zr) m, err m)."""
-    from estimators.model import DiscreteModel, RoadModel, measurement_covariance
+    from .model import DiscreteModel, RoadModel, measurement_covariance
 
     Rm = measurement_covariance(0.02, 0.2, 1e-4)
     rows = []

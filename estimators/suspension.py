@@ -31,11 +31,11 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from plant import iso8608
-from plant.iri import IRIMeter
-from plant.quarter_car import NOISE_STD_RANGES
-from plant.step_size import same_step
-from plant.vehicle import Vehicle, VEHICLE_RANGES, check_range
+from ..plant import iso8608
+from ..plant.iri import IRIMeter
+from ..plant.quarter_car import NOISE_STD_RANGES
+from ..plant.step_size import same_step
+from ..plant.vehicle import Vehicle, VEHICLE_RANGES, check_range
 
 from .kalman import LinearKF, MMEKF, error_buildup
 from .mass import MassEstimator

@@ -3,10 +3,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from plant import iso8608
-from plant.iri import IRIMeter
-from plant.road import MeasuredRoad, SyntheticRoad
-from suspension_fmi.slave import ContractSlave
+from suspension_estimation.plant import iso8608
+from suspension_estimation.plant.iri import IRIMeter
+from suspension_estimation.plant.road import MeasuredRoad, SyntheticRoad
+from suspension_estimation.suspension_fmi.slave import ContractSlave
 
 
 class ISORoad(ContractSlave):

@@ -1,9 +1,9 @@
 """QuarterCar FMU: the linear quarter-car plant with seeded sensor noise."""
 from __future__ import annotations
 
-from plant.quarter_car import QuarterCar as Plant, SensorNoise
-from plant.vehicle import Vehicle
-from suspension_fmi.slave import ContractSlave
+from suspension_estimation.plant.quarter_car import QuarterCar as Plant, SensorNoise
+from suspension_estimation.plant.vehicle import Vehicle
+from suspension_estimation.suspension_fmi.slave import ContractSlave
 
 
 class QuarterCar(ContractSlave):

@@ -1,8 +1,8 @@
 """SuspensionEstimator FMU: road profile (KF or MME&KF), sprung mass (RLS) and ISO class online."""
 from __future__ import annotations
 
-from estimators.suspension import EstimatorConfig, SuspensionEstimator as Core
-from suspension_fmi.slave import ContractSlave
+from suspension_estimation.estimators.suspension import EstimatorConfig, SuspensionEstimator as Core
+from suspension_estimation.suspension_fmi.slave import ContractSlave
 
 # contract parameters that configure the core under the same name
 _CONFIG = ("m_s_nominal", "m_u", "k_s", "k_t", "c_s", "road_estimator", "mass_estimator", "mass_feedback",

@@ -1,4 +1,4 @@
-"""``python -m harness run <scenario>`` and ``python -m harness paper``: see harness/cli.py."""
+"""``python -m suspension_estimation.harness run <scenario>`` and ``python -m suspension_estimation.harness paper``: see harness/cli.py."""
 import os
 
 # One thread per process for the numerical libraries, before numpy loads: the paper study runs in

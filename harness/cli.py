@@ -1,9 +1,9 @@
 """Command line.
 
-``python -m harness run <scenario> [--out DIR] [--no-plots] [--dist DIR]``: prints a summary;
+``python -m suspension_estimation.harness run <scenario> [--out DIR] [--no-plots] [--dist DIR]``: prints a summary;
 writes ``<out>/<scenario>.csv`` and PNG plots (default ``results/<scenario>/``).
 
-``python -m harness paper [--study NAME ...] [--seeds N] [--duration S] [--warmup S] [--step S]
+``python -m suspension_estimation.harness paper [--study NAME ...] [--seeds N] [--duration S] [--warmup S] [--step S]
 [--classes B,C,D] [--workers N] [--out DIR] [--study10ms] [--class-study N] [--dask]
 [--scheduler ADDRESS] [--dist DIR]``: the papers' studies through the FMUs (one module each in
 harness/studies/, named in its registry; without ``--study``: table2 and mass; with ``--dask`` or
@@ -12,7 +12,7 @@ instances); prints the tables and targets as markdown, writes ``<out>/paper_tabl
 ``<out>/paper_runs.json`` and PNG plots (default ``results/paper/``). Exits 1 if any run failed
 (after reporting it and finishing the others).
 
-``python -m harness sweep <file> [--workers N] [--scheduler ADDRESS] [--out DIR] [--dist DIR]
+``python -m suspension_estimation.harness sweep <file> [--workers N] [--scheduler ADDRESS] [--out DIR] [--dist DIR]
 [--skip-failed] [--limit N]``: a grid or Monte Carlo study on Dask (harness/sweep.py); one row of
 metrics per run and estimator streamed to Parquet (default the file's ``output``), skipping runs
 already there; prints a summary. Exits 1 if a run failed now (after recording it and finishing
@@ -95,7 +95,7 @@ def _sweep(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m harness", description="Co-simulate the project's FMUs.")
+    ap = argparse.ArgumentParser(prog="python -m suspension_estimation.harness", description="Co-simulate the project's FMUs.")
     sub = ap.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a scenario (a name in harness/scenarios/ or a .toml path)")
     run.add_argument("scenario", help="scenario name (e.g. default) or path to a .toml file")

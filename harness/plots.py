@@ -253,7 +253,7 @@ def spatial_psd(distance: np.ndarray, height: np.ndarray, dx: float = PSD_DX) ->
 
 
 def _road_psd(result: np.ndarray, path: Path, name: str, warmup: float) -> Path | None:
-    from plant import iso8608
+    from suspension_estimation.plant import iso8608
 
     t = result["time"]
     keep = t >= t[0] + warmup

@@ -180,7 +180,7 @@ def _params(where: str, key: str, data: dict) -> dict:
 def _whole_profile_duration(where: str, road: dict, speed: Profile, step: float) -> float:
     """The duration (s, whole steps) that drives the road's profile_file to its end: the road
     advances by speed(t_k) * step in step k, and the last step must not pass the end."""
-    from plant.profile_formats import ProfileError, read_profile
+    from suspension_estimation.plant.profile_formats import ProfileError, read_profile
 
     if not road.get("profile_file"):
         raise _err(where, "'duration' = \"profile\" needs 'road.profile_file'")

@@ -1,11 +1,11 @@
 """Sweeps: grid or Monte Carlo studies of the estimators through the FMUs, on Dask distributed.
 
-``python -m harness sweep <file>`` runs every point of a sweep (ISO class x speed x true sprung
+``python -m suspension_estimation.harness sweep <file>`` runs every point of a sweep (ISO class x speed x true sprung
 mass x seed, from a grid and/or seeded Monte Carlo draws) with every estimator configuration of
 the file, and streams one row of metrics per run of an estimator to Parquet. Each point is one
 co-simulation, the table-2 run of ``harness.studies.runner``: one road and one plant feeding one
 SuspensionEstimator instance per configuration, so the estimators are compared on the very same
-signals and the road and plant are paid once (the numbers are those of ``python -m harness
+signals and the road and plant are paid once (the numbers are those of ``python -m suspension_estimation.harness
 paper``: it is the same function).
 
 Sweep files are TOML, looked up by name in ``harness/sweeps/`` (``small_grid`` ->
@@ -407,7 +407,7 @@ def run_specs(specs: Sequence[RunSpec], workers: int = 2, scheduler: str | None 
               runs: Mapping[str, Callable[[RunSpec], dict]] | None = None) -> list[dict]:
     """The studies' runs (``runner.run_one`` results, in the order of ``specs``; ``runs`` as for
     ``runner.run_all``) on Dask: a LocalCluster of ``workers`` processes or the cluster at
-    ``scheduler``; each worker reuses its CoSimulations. What ``python -m harness paper --dask``
+    ``scheduler``; each worker reuses its CoSimulations. What ``python -m suspension_estimation.harness paper --dask``
     runs."""
     require_extra("distributed")
     from distributed import Client

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from plant import iso8608
-from plant.road import SyntheticRoad
+from suspension_estimation.plant import iso8608
+from suspension_estimation.plant.road import SyntheticRoad
 
 
 def joined_iso(classes: list[int], lengths: list[float], seed: int = 1, dx: float = 0.05) -> tuple[np.ndarray, np.ndarray]:

@@ -40,14 +40,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.kalman import LinearKF
-from estimators.model import DiscreteModel
-from estimators.vb_akf import DOF, N_ITER, RHO, TAU, VBAKF, vb_update
-from harness.smoothing import FilterRecord, rts_smooth
-from plant import iso8608
-from plant.quarter_car import QuarterCar, SensorNoise, discretise
-from plant.road import SyntheticRoad
-from plant.vehicle import DEFAULT_VEHICLE, Vehicle
+from suspension_estimation.estimators.kalman import LinearKF
+from suspension_estimation.estimators.model import DiscreteModel
+from suspension_estimation.estimators.vb_akf import DOF, N_ITER, RHO, TAU, VBAKF, vb_update
+from suspension_estimation.harness.smoothing import FilterRecord, rts_smooth
+from suspension_estimation.plant import iso8608
+from suspension_estimation.plant.quarter_car import QuarterCar, SensorNoise, discretise
+from suspension_estimation.plant.road import SyntheticRoad
+from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE, Vehicle
 
 PAPER_VEHICLE = Vehicle(m_s=250.0, m_u=30.0, k_s=1.0e4, k_t=1.0e5, c_s=1000.0)
 TS = 0.01  # s

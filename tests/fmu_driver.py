@@ -10,7 +10,7 @@ from fmpy import extract, read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave
 
-from harness.cosim import STATUS, LogSink
+from suspension_estimation.harness.cosim import STATUS, LogSink
 
 
 class Driven:

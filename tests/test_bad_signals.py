@@ -14,9 +14,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fmu_src.suspension_fmi.contract import SUSPENSION_ESTIMATOR
-from harness.cosim import CoSimulation, System
-from harness.metrics import highpass, road_scores
+from suspension_estimation.suspension_fmi.contract import SUSPENSION_ESTIMATOR
+from suspension_estimation.harness.cosim import CoSimulation, System
+from suspension_estimation.harness.metrics import highpass, road_scores
 
 H = 1e-3  # s
 V = 11.1111  # m/s, 40 km/h

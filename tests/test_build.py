@@ -168,9 +168,13 @@ def test_scripts_are_unique_and_shared_packages_identical(dist):
                 if len(parts) > 2 and parts[0] == "resources" and info.filename.endswith(".py"):
                     packages.setdefault(info.filename, set()).add(z.read(info.filename))
     assert len(set(modules.values())) == len(modules)
-    # a package bundled by several FMUs is the same code in each, so one module cache serves all
+    # each FMU bundles its sources under a package name private to it and its build
+    private = {name: build_script.private_name(name, build_script.project_version()) for name in modules}
+    assert modules == {name: f"{private[name]}_{name}" for name in modules}
+    assert len(set(private.values())) == len(private)
     assert all(len(versions) == 1 for versions in packages.values())
-    assert any(f.startswith("resources/suspension_fmi/") for f in packages)
+    assert {Path(f).parts[1] for f in packages} == {*private.values(), "pythonfmu"}
+    assert all(f"resources/{p}/suspension_fmi/contract.py" in packages for p in private.values())
 
 
 def test_all_fmus_in_one_process_and_two_instances_stay_independent(dist):

@@ -19,10 +19,10 @@ from fmpy.validation import validate_fmu
 
 from conftest import ROOT
 from fmu_driver import Driven
-from harness.container import CONTAINER, INPUTS, build_container, wiring
-from harness.runner import run_scenario
-from harness.scenario import load_scenario
-from harness.ssp import ROAD_PLANT_ESTIMATOR, SYSTEMS
+from suspension_estimation.harness.container import CONTAINER, INPUTS, build_container, wiring
+from suspension_estimation.harness.runner import run_scenario
+from suspension_estimation.harness.scenario import load_scenario
+from suspension_estimation.harness.ssp import ROAD_PLANT_ESTIMATOR, SYSTEMS
 
 H = 1e-3  # s
 DURATION = 2.0  # s of the default scenario compared

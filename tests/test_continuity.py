@@ -6,13 +6,13 @@ import math
 
 import numpy as np
 
-from estimators.model import reference_step_response
-from estimators.road_class import RoadClassifier
-from estimators.start_offset import BLEND_TIME, SAMPLE_INTERVAL, StartOffset
-from harness.cosim import CoSimulation, System
-from harness.testroads import add_sag, joined_iso, write_profile
-from plant import iso8608
-from plant.road import SyntheticRoad
+from suspension_estimation.estimators.model import reference_step_response
+from suspension_estimation.estimators.road_class import RoadClassifier
+from suspension_estimation.estimators.start_offset import BLEND_TIME, SAMPLE_INTERVAL, StartOffset
+from suspension_estimation.harness.cosim import CoSimulation, System
+from suspension_estimation.harness.testroads import add_sag, joined_iso, write_profile
+from suspension_estimation.plant import iso8608
+from suspension_estimation.plant.road import SyntheticRoad
 
 TOL = 0.5e-3  # m: largest allowed step of the estimate beyond the road's own change
 

@@ -9,9 +9,9 @@ import pytest
 from fmpy.fmi1 import FMICallException
 
 from fmu_driver import Driven
-from fmu_src.suspension_fmi.contract import SUSPENSION_ESTIMATOR
-from harness.cosim import CoSimulation, System
-from harness.metrics import road_scores
+from suspension_estimation.suspension_fmi.contract import SUSPENSION_ESTIMATOR
+from suspension_estimation.harness.cosim import CoSimulation, System
+from suspension_estimation.harness.metrics import road_scores
 
 V = 11.1111  # m/s, 40 km/h
 OUTPUTS = [v.name for v in SUSPENSION_ESTIMATOR if v.causality == "output"]

@@ -8,17 +8,17 @@ import pytest
 from scipy.linalg import expm
 from scipy.signal import welch
 
-from estimators import EstimatorConfig, SuspensionEstimator, validate
-from estimators.kalman import LinearKF
-from estimators.mass import ForgettingRLS, MassEstimator
-from estimators.model import (DiscreteModel, RoadModel, discretise, noise_intensity, output_matrix,
+from suspension_estimation.estimators import EstimatorConfig, SuspensionEstimator, validate
+from suspension_estimation.estimators.kalman import LinearKF
+from suspension_estimation.estimators.mass import ForgettingRLS, MassEstimator
+from suspension_estimation.estimators.model import (DiscreteModel, RoadModel, discretise, noise_intensity, output_matrix,
                               road_intensity, state_matrix)
-from estimators.road_class import grade_index_from_profile, welch_psd
-from harness.metrics import road_scores, settling_time
-from plant import iso8608
-from plant.quarter_car import QuarterCar, SensorNoise, state_matrices
-from plant.road import SyntheticRoad
-from plant.vehicle import DEFAULT_VEHICLE, PAPER001_VEHICLE
+from suspension_estimation.estimators.road_class import grade_index_from_profile, welch_psd
+from suspension_estimation.harness.metrics import road_scores, settling_time
+from suspension_estimation.plant import iso8608
+from suspension_estimation.plant.quarter_car import QuarterCar, SensorNoise, state_matrices
+from suspension_estimation.plant.road import SyntheticRoad
+from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE, PAPER001_VEHICLE
 
 
 def simulate(road_class=3, speed=40 / 3.6, T=12.0, h=1e-3, seed=1, vehicle=DEFAULT_VEHICLE, mass=None,
@@ -343,8 +343,8 @@ def test_steady_state_filter_keeps_the_band_and_is_honest():
     # the frozen (DARE) gain, analysed in frequency against the exact plant on an ISO C road at
     # 40 km/h: in-band estimate/truth transfer ~1 (no shrinkage), HP error small, and the
     # filter's own sqrt(P[z_r, z_r]) close to the true raw error (honest road_height_std)
-    from estimators.steady_state import analyse, steady_gain
-    from estimators.model import measurement_covariance
+    from suspension_estimation.estimators.steady_state import analyse, steady_gain
+    from suspension_estimation.estimators.model import measurement_covariance
 
     h, V = 1e-3, 40 / 3.6
     R = measurement_covariance(0.02, 0.2, 1e-4)
@@ -370,9 +370,9 @@ def test_raw_error_variance_is_the_spectral_error(acc_sampling):
     over 20000 frequencies) within 1 %, for point-sampled and averaged accelerations; it grows
     with the road class and stays below the filter's own P[z_r, z_r], which also carries the
     model noise."""
-    from estimators.kalman import stationary_covariance
-    from estimators.model import measurement_covariance
-    from estimators.steady_state import analyse, raw_error_variance
+    from suspension_estimation.estimators.kalman import stationary_covariance
+    from suspension_estimation.estimators.model import measurement_covariance
+    from suspension_estimation.estimators.steady_state import analyse, raw_error_variance
 
     h, V = 1e-3, 40 / 3.6
     R = measurement_covariance(0.02, 0.2, 1e-4)
@@ -394,7 +394,7 @@ def test_covariance_converges_and_stays_spd_over_a_long_run():
     # 20 min at 10 ms (50x the common-mode reference's time constant; at 1 ms this would be
     # slow): P converges to the DARE solution and stays symmetric PD (the old design's common-
     # mode covariance grew for many minutes and never settled)
-    from estimators.steady_state import steady_gain
+    from suspension_estimation.estimators.steady_state import steady_gain
 
     h = 1e-2
     m = DiscreteModel.build(DEFAULT_VEHICLE, 20.0, iso8608.class_psd_n0(6), h)
@@ -433,8 +433,8 @@ def test_wrong_start_mass_refiltered_raw_error_and_coverage():
 # --- averaged accelerations (acc_sampling = 1) ------------------------------------------------------
 @pytest.mark.parametrize("h", [1e-3, 1e-2])
 def test_averaged_measurement_model_matches_plant_exactly(h):
-    from estimators.model import IVS_PREV, IVU_PREV
-    from plant.quarter_car import discretise as plant_discretise
+    from suspension_estimation.estimators.model import IVS_PREV, IVU_PREV
+    from suspension_estimation.plant.quarter_car import discretise as plant_discretise
 
     for hold in (False, True):
         m = DiscreteModel.build(DEFAULT_VEHICLE, 11.0, iso8608.class_psd_n0(6), h, RoadModel(f_ref=0.0),

@@ -11,12 +11,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimators.kalman import LinearKF, error_buildup, stationary_covariance
-from estimators.model import (IZR, DiscreteModel, RoadModel, iso_road_height_std, measurement_covariance,
+from suspension_estimation.estimators.kalman import LinearKF, error_buildup, stationary_covariance
+from suspension_estimation.estimators.model import (IZR, DiscreteModel, RoadModel, iso_road_height_std, measurement_covariance,
                               reference_step_response)
-from estimators.suspension import SuspensionEstimator
-from plant import iso8608
-from plant.vehicle import DEFAULT_VEHICLE
+from suspension_estimation.estimators.suspension import SuspensionEstimator
+from suspension_estimation.plant import iso8608
+from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE
 from test_estimators_core import simulate
 
 STATE_OUTPUTS = ("road_height_est", "road_velocity_est", "z_s_est", "v_s_est", "z_u_est", "v_u_est")

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from harness.cosim import CoSimulation, SimulationError, System, read_csv, write_csv
-from harness.ssp import ROAD_PLANT, ROAD_PLANT_ESTIMATOR, ensure_system_ssp, read_ssp
+from suspension_estimation.harness.cosim import CoSimulation, SimulationError, System, read_csv, write_csv
+from suspension_estimation.harness.ssp import ROAD_PLANT, ROAD_PLANT_ESTIMATOR, ensure_system_ssp, read_ssp
 
 H = 1e-3  # s
 V = 11.1111  # m/s

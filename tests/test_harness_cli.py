@@ -1,4 +1,4 @@
-"""Scenarios (harness/scenario.py) and ``python -m harness run``: outputs, exit codes, one-line errors."""
+"""Scenarios (harness/scenario.py) and ``python -m suspension_estimation.harness run``: outputs, exit codes, one-line errors."""
 from __future__ import annotations
 
 import subprocess
@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from harness.cosim import read_csv
-from harness.runner import run_scenario
-from harness.scenario import SCENARIOS, ScenarioError, load_scenario
+from suspension_estimation.harness.cosim import read_csv
+from suspension_estimation.harness.runner import run_scenario
+from suspension_estimation.harness.scenario import SCENARIOS, ScenarioError, load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -39,7 +39,7 @@ ROAD_PLANT = 'system = "road_plant"\n'
 
 
 def harness(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "harness", *args], capture_output=True, text=True, cwd=ROOT,
+    return subprocess.run([sys.executable, "-m", "suspension_estimation.harness", *args], capture_output=True, text=True, cwd=ROOT,
                           timeout=120)
 
 

@@ -11,8 +11,8 @@ from fmpy.ssp.simulation import simulate_ssp
 from fmpy.ssp.ssd import read_ssd
 
 from fmu_driver import Driven
-from harness.cosim import CoSimulation, System
-from harness.ssp import ROAD_PLANT, ROAD_PLANT_ESTIMATOR, SYSTEMS, read_ssp, write_system_ssps
+from suspension_estimation.harness.cosim import CoSimulation, System
+from suspension_estimation.harness.ssp import ROAD_PLANT, ROAD_PLANT_ESTIMATOR, SYSTEMS, read_ssp, write_system_ssps
 
 H = 1e-3  # s
 V = 11.1111  # m/s

@@ -8,8 +8,8 @@ import pytest
 from scipy.integrate import quad
 from scipy.signal import lsim
 
-from plant import iri, iso8608
-from plant.road import SyntheticRoad
+from suspension_estimation.plant import iri, iso8608
+from suspension_estimation.plant.road import SyntheticRoad
 
 DX = 0.05
 
@@ -126,8 +126,8 @@ def test_isoroad_fmu_iri_is_independent_of_speed_and_matches_the_profile(driven)
 
 
 def test_estimator_fmu_iri_est_tracks_the_true_iri(dist):
-    from harness.cosim import CoSimulation, System
-    from harness.metrics import iri_segments
+    from suspension_estimation.harness.cosim import CoSimulation, System
+    from suspension_estimation.harness.metrics import iri_segments
 
     wires = ("acc_sprung", "acc_unsprung", "susp_deflection")
     comps = {"road": dist / "ISORoad.fmu", "plant": dist / "QuarterCar.fmu", "e": dist / "SuspensionEstimator.fmu"}

@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimators.mass import MassEstimator
-from harness.metrics import settling_time
-from plant import iso8608
-from plant.quarter_car import QuarterCar, SensorNoise
-from plant.road import SyntheticRoad
-from plant.vehicle import DEFAULT_VEHICLE, PAPER001_VEHICLE
+from suspension_estimation.estimators.mass import MassEstimator
+from suspension_estimation.harness.metrics import settling_time
+from suspension_estimation.plant import iso8608
+from suspension_estimation.plant.quarter_car import QuarterCar, SensorNoise
+from suspension_estimation.plant.road import SyntheticRoad
+from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE, PAPER001_VEHICLE
 
 H = 1e-3  # s
 SPEED = 11.1111  # m/s, 40 km/h

@@ -7,16 +7,16 @@ import pytest
 from scipy.integrate import simpson
 from scipy.linalg import expm
 
-from estimators import SuspensionEstimator
-from estimators.model import (IVS, IVS_PREV, IVU, DiscreteModel, RoadModel,
+from suspension_estimation.estimators import SuspensionEstimator
+from suspension_estimation.estimators.model import (IVS, IVS_PREV, IVU, DiscreteModel, RoadModel,
                               measurement_covariance, output_matrix, reference_step_response,
                               start_level_std, state_matrix)
-from estimators.steady_state import analyse, steady_gain
-from harness.metrics import road_scores
-from plant import iso8608
-from plant.quarter_car import QuarterCar, SensorNoise
-from plant.road import SyntheticRoad
-from plant.vehicle import DEFAULT_VEHICLE
+from suspension_estimation.estimators.steady_state import analyse, steady_gain
+from suspension_estimation.harness.metrics import road_scores
+from suspension_estimation.plant import iso8608
+from suspension_estimation.plant.quarter_car import QuarterCar, SensorNoise
+from suspension_estimation.plant.road import SyntheticRoad
+from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE
 
 SPEED = 40 / 3.6
 

@@ -1,4 +1,4 @@
-"""``python -m harness paper`` (harness/studies/): a quick study through the built FMUs.
+"""``python -m suspension_estimation.harness paper`` (harness/studies/): a quick study through the built FMUs.
 
 One seed, 12 s runs, 2 s warm-up, ISO C, plus the 10 ms study and the vehicle-mass case: the
 structure of the tables, JSON and plots, and loose, seed-robust behaviour (a KF with the wrong mass
@@ -17,10 +17,10 @@ from pathlib import Path
 
 import pytest
 
-from harness.studies.paper000 import MASSES
-from harness.studies.paper001 import mass_segments
-from harness.studies.runner import ESTIMATORS, RunSpec, parse_classes, run_all
-from harness.studies.suite import PaperStudy
+from suspension_estimation.harness.studies.paper000 import MASSES
+from suspension_estimation.harness.studies.paper001 import mass_segments
+from suspension_estimation.harness.studies.runner import ESTIMATORS, RunSpec, parse_classes, run_all
+from suspension_estimation.harness.studies.suite import PaperStudy
 
 ROOT = Path(__file__).resolve().parents[1]
 METRICS = ("err_std_raw_pct", "err_std_hp_pct", "gain_hp", "rmse_raw_mm", "rmse_hp_mm", "coverage_2sigma",
@@ -30,7 +30,7 @@ METRICS = ("err_std_raw_pct", "err_std_hp_pct", "gain_hp", "rmse_raw_mm", "rmse_
 @pytest.fixture(scope="module")
 def quick(dist, tmp_path_factory):
     out = tmp_path_factory.mktemp("paper")
-    proc = subprocess.run([sys.executable, "-m", "harness", "paper", "--seeds", "1", "--duration", "12",
+    proc = subprocess.run([sys.executable, "-m", "suspension_estimation.harness", "paper", "--seeds", "1", "--duration", "12",
                            "--warmup", "2", "--classes", "C", "--workers", "2", "--study10ms", "-q",
                            "--dist", str(dist), "--out", str(out)],
                           capture_output=True, text=True, cwd=ROOT, timeout=300)
@@ -152,8 +152,8 @@ def test_the_workers_leave_the_fmus_their_own_packages():
 
 
 def test_the_online_class_study_identifies_the_class(dist):
-    from harness.studies import road_class
-    from harness.studies.runner import run_one
+    from suspension_estimation.harness.studies import road_class
+    from suspension_estimation.harness.studies.runner import run_one
 
     r = run_one(RunSpec("class", 4, 2, 15.0, 2.0, 2e-3, str(dist), speed=20.0), run=road_class.run)
     assert r["ok"], r.get("error")
@@ -164,7 +164,7 @@ def test_the_online_class_study_identifies_the_class(dist):
 _ORPHAN_SCRIPT = """
 import os, sys, time
 sys.path.insert(0, sys.argv[1])
-from harness.studies.runner import process_pool
+from suspension_estimation.harness.studies.runner import process_pool
 if __name__ == "__main__":
     ex = process_pool(1)
     print(ex.submit(os.getpid).result(), flush=True)
@@ -174,7 +174,7 @@ if __name__ == "__main__":
 
 
 def test_pool_workers_end_when_the_study_is_killed(tmp_path):
-    """`python -m harness paper` killed outright (SIGKILL, no clean-up): its spawned workers
+    """`python -m suspension_estimation.harness paper` killed outright (SIGKILL, no clean-up): its spawned workers
     leave within seconds instead of finishing their run and blocking on a dead pipe."""
     import os
     import signal

@@ -7,8 +7,8 @@ from scipy import signal
 
 from fmpy.fmi1 import FMICallException
 from fmu_driver import Driven
-from plant.quarter_car import state_matrices
-from plant.vehicle import DEFAULT_VEHICLE, Vehicle
+from suspension_estimation.plant.quarter_car import state_matrices
+from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE, Vehicle
 
 OUT = ["z_s", "v_s", "z_u", "v_u", "acc_sprung_true", "acc_unsprung_true", "susp_deflection", "tire_force"]
 QUIET = {"acc_sprung_noise_std": 0.0, "acc_unsprung_noise_std": 0.0, "defl_noise_std": 0.0}

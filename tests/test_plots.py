@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.runner import run_scenario
-from harness.scenario import load_scenario
+from suspension_estimation.harness.runner import run_scenario
+from suspension_estimation.harness.scenario import load_scenario
 
 SCENARIO = """\
 duration = 4.0
@@ -25,7 +25,7 @@ value = [410.0, 480.0]
 def test_every_plot_is_written_and_not_blank(dist, tmp_path):
     from matplotlib.image import imread
 
-    from harness.plots import plot_result
+    from suspension_estimation.harness.plots import plot_result
 
     if not (dist / "SuspensionEstimator.fmu").is_file():
         pytest.skip("SuspensionEstimator.fmu is not part of this build")

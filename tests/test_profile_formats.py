@@ -8,7 +8,7 @@ import pytest
 from fmpy.fmi1 import FMICallException
 
 from conftest import SHARED
-from plant.profile_formats import ProfileError, read_profile
+from suspension_estimation.plant.profile_formats import ProfileError, read_profile
 
 S = np.arange(0.0, 40.01, 0.25)
 Z = 0.01 * np.sin(2 * np.pi * S / 7.0) + 0.002 * S  # m: a wave on a 0.2 % grade
@@ -166,8 +166,8 @@ def test_profile_end_stop_hold_loop(driven, tmp_path, mode):
 
 
 def test_scenario_drives_the_whole_profile(dist, tmp_path):
-    from harness.runner import run_scenario
-    from harness.scenario import ScenarioError, load_scenario
+    from suspension_estimation.harness.runner import run_scenario
+    from suspension_estimation.harness.scenario import ScenarioError, load_scenario
 
     _csv(tmp_path / "p.csv", "distance (m), elevation (mm)\n", S, 1e3 * (Z + 1583.1))
     sc = tmp_path / "whole.toml"

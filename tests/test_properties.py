@@ -22,14 +22,14 @@ from fmpy.fmi2 import FMU2Slave
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from estimators import SuspensionEstimator
-from estimators.suspension import EstimatorConfig
-from fmu_src.suspension_fmi.contract import CONTRACTS, Var
-from harness.cosim import STATUS, LogSink
-from plant import iso8608
-from plant.quarter_car import NOISE_STD_RANGES, QuarterCar, SensorNoise
-from plant.road import SyntheticRoad
-from plant.vehicle import VEHICLE_RANGES, Vehicle
+from suspension_estimation.estimators import SuspensionEstimator
+from suspension_estimation.estimators.suspension import EstimatorConfig
+from suspension_estimation.suspension_fmi.contract import CONTRACTS, Var
+from suspension_estimation.harness.cosim import STATUS, LogSink
+from suspension_estimation.plant import iso8608
+from suspension_estimation.plant.quarter_car import NOISE_STD_RANGES, QuarterCar, SensorNoise
+from suspension_estimation.plant.road import SyntheticRoad
+from suspension_estimation.plant.vehicle import VEHICLE_RANGES, Vehicle
 
 CORE = settings(derandomize=True, database=None, deadline=None, max_examples=12,
                 suppress_health_check=[HealthCheck.too_slow])
@@ -190,7 +190,7 @@ def test_stiff_discretisation_is_finite_and_psd():
     from scipy.integrate import quad_vec
     from scipy.linalg import expm
 
-    from estimators.model import discretise, noise_intensity, state_matrix
+    from suspension_estimation.estimators.model import discretise, noise_intensity, state_matrix
 
     gd = iso8608.class_psd_n0(6)
     v = Vehicle(m_s=797.37, m_u=15.66, k_s=1.0764e6, k_t=15743.0, c_s=3.9336e6)

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from fmpy.fmi1 import FMICallException
-from plant import iso8608
-from plant.road import SyntheticRoad
+from suspension_estimation.plant import iso8608
+from suspension_estimation.plant.road import SyntheticRoad
 
 
 @pytest.fixture

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.smoothing import FilterRecord, rts_smooth
-from harness.vb_study import paper_model
+from suspension_estimation.harness.smoothing import FilterRecord, rts_smooth
+from suspension_estimation.harness.vb_study import paper_model
 
 
 def _data(K, seed, q=0.05, r=(0.01, 1e-4, 1e-3)):

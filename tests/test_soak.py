@@ -35,8 +35,8 @@ def test_stepper_in_chunks_equals_cosimulation_run(dist):
     bit (1 s of road -> plant -> estimator at 1 ms), and its clock ends at 1 s exactly."""
     import numpy as np
 
-    from harness.cosim import CoSimulation, System
-    from harness.streaming import Stepper
+    from suspension_estimation.harness.cosim import CoSimulation, System
+    from suspension_estimation.harness.streaming import Stepper
 
     wires = ("acc_sprung", "acc_unsprung", "susp_deflection")
     system = System({"road": dist / "ISORoad.fmu", "plant": dist / "QuarterCar.fmu",

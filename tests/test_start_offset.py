@@ -6,14 +6,14 @@ import math
 import numpy as np
 import pytest
 
-from estimators.model import iso_road_height_std, reference_step_response
-from estimators.start_offset import SAMPLE_INTERVAL, StartOffset
-from estimators.suspension import SuspensionEstimator
-from harness.metrics import road_scores
-from plant import iso8608
-from plant.quarter_car import QuarterCar, SensorNoise
-from plant.road import SyntheticRoad
-from plant.vehicle import DEFAULT_VEHICLE
+from suspension_estimation.estimators.model import iso_road_height_std, reference_step_response
+from suspension_estimation.estimators.start_offset import SAMPLE_INTERVAL, StartOffset
+from suspension_estimation.estimators.suspension import SuspensionEstimator
+from suspension_estimation.harness.metrics import road_scores
+from suspension_estimation.plant import iso8608
+from suspension_estimation.plant.quarter_car import QuarterCar, SensorNoise
+from suspension_estimation.plant.road import SyntheticRoad
+from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE
 
 F_REF, V = 0.01, 40 / 3.6
 

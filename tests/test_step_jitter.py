@@ -13,12 +13,12 @@ import numpy as np
 from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi2 import FMU2Slave
 
-from estimators.suspension import SuspensionEstimator
-from harness.cosim import CoSimulation, LogSink, System
-from harness.ssp import read_ssp
-from plant.quarter_car import QuarterCar
-from plant.step_size import STEP_RTOL, same_step
-from plant.vehicle import Vehicle
+from suspension_estimation.estimators.suspension import SuspensionEstimator
+from suspension_estimation.harness.cosim import CoSimulation, LogSink, System
+from suspension_estimation.harness.ssp import read_ssp
+from suspension_estimation.plant.quarter_car import QuarterCar
+from suspension_estimation.plant.step_size import STEP_RTOL, same_step
+from suspension_estimation.plant.vehicle import Vehicle
 
 H = 1e-3  # s
 V = 11.1111  # m/s

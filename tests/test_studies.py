@@ -1,6 +1,6 @@
 """harness/studies/: one module per study over one shared runner, without an import circle
 (checked on the source's import statements, also those inside functions, and by importing each
-module alone in a fresh interpreter), and the registry behind ``python -m harness paper --study``."""
+module alone in a fresh interpreter), and the registry behind ``python -m suspension_estimation.harness paper --study``."""
 from __future__ import annotations
 
 import ast
@@ -11,14 +11,15 @@ from pathlib import Path
 
 import pytest
 
-from harness.studies import STUDIES, load
-from harness.studies.runner import RunSpec, Study, run_one
-from harness.studies.suite import PaperStudy
+from suspension_estimation.harness.studies import STUDIES, load
+from suspension_estimation.harness.studies.runner import RunSpec, Study, run_one
+from suspension_estimation.harness.studies.suite import PaperStudy
 
 ROOT = Path(__file__).resolve().parents[1]
-FILES = {".".join(p.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__"): p
+H = "suspension_estimation.harness"  # the folder harness/ as installed
+FILES = {".".join(["suspension_estimation", *p.relative_to(ROOT).with_suffix("").parts]).removesuffix(".__init__"): p
          for p in (ROOT / "harness").rglob("*.py")}
-STUDY_MODULES = sorted(m for m in FILES if m.startswith("harness.studies")) + ["harness.sweep"]
+STUDY_MODULES = sorted(m for m in FILES if m.startswith(f"{H}.studies")) + [f"{H}.sweep"]
 
 
 def _imports(module: str) -> set[str]:
@@ -42,10 +43,9 @@ def _imports(module: str) -> set[str]:
 
 def test_the_harness_has_no_import_circle():
     graph = {m: _imports(m) for m in FILES}
-    assert {"harness.studies.runner", "harness.studies.paper000"} <= set(graph)  # the parser sees the package
-    assert "harness.studies.runner" in graph["harness.sweep"] and "harness.studies.runner" in graph[
-        "harness.studies.paper001"]
-    assert not {m for m in graph["harness.studies.runner"] if m.startswith(("harness.studies", "harness.sweep"))}
+    assert {f"{H}.studies.runner", f"{H}.studies.paper000"} <= set(graph)  # the parser sees the package
+    assert f"{H}.studies.runner" in graph[f"{H}.sweep"] and f"{H}.studies.runner" in graph[f"{H}.studies.paper001"]
+    assert not {m for m in graph[f"{H}.studies.runner"] if m.startswith((f"{H}.studies", f"{H}.sweep"))}
     state: dict[str, int] = {}  # 1 on the path, 2 done
 
     def visit(m: str, path: list[str]) -> None:
@@ -94,7 +94,7 @@ def test_a_run_without_its_function_fails_with_the_reason(tmp_path):
 
 
 def test_cli_study_chooses_the_studies(dist, tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "harness", "paper", "--study", "mass", "--seeds", "1", "--step",
+    proc = subprocess.run([sys.executable, "-m", "suspension_estimation.harness", "paper", "--study", "mass", "--seeds", "1", "--step",
                            "0.002", "-q", "--dist", str(dist), "--out", str(tmp_path)],
                           capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
@@ -103,6 +103,6 @@ def test_cli_study_chooses_the_studies(dist, tmp_path):
     md = (tmp_path / "paper_tables.md").read_text()
     assert "(b) Vehicle-mass paper" in md and "(a) MME&KF" not in md
     assert sorted(f.name for f in tmp_path.iterdir()) == ["mass_paper001.png", "paper_runs.json", "paper_tables.md"]
-    bad = subprocess.run([sys.executable, "-m", "harness", "paper", "--study", "nope", "--dist", str(dist)],
+    bad = subprocess.run([sys.executable, "-m", "suspension_estimation.harness", "paper", "--study", "nope", "--dist", str(dist)],
                          capture_output=True, text=True, cwd=ROOT, timeout=60)
     assert bad.returncode == 1 and bad.stderr.count("\n") == 1 and "no study 'nope'" in bad.stderr, bad.stderr

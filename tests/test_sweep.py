@@ -1,6 +1,6 @@
-"""``python -m harness sweep`` (harness/sweep.py): small grids through the built FMUs, on a Dask
+"""``python -m suspension_estimation.harness sweep`` (harness/sweep.py): small grids through the built FMUs, on a Dask
 LocalCluster of two worker processes and in this process; skipping what is done, failures
-recorded with their reason, the same numbers as ``python -m harness paper``, the sweep files."""
+recorded with their reason, the same numbers as ``python -m suspension_estimation.harness paper``, the sweep files."""
 from __future__ import annotations
 
 import math
@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from harness.studies import runner
-from harness.studies.suite import PaperStudy
-from harness.sweep import SweepError, load_sweep, read_results, run_sweep
+from suspension_estimation.harness.studies import runner
+from suspension_estimation.harness.studies.suite import PaperStudy
+from suspension_estimation.harness.sweep import SweepError, load_sweep, read_results, run_sweep
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -44,7 +44,7 @@ def _sweep(tmp_path: Path, text: str, name: str = "tiny"):
 def cluster():
     from distributed import Client
 
-    from harness.sweep import local_cluster
+    from suspension_estimation.harness.sweep import local_cluster
 
     c = local_cluster(2)
     client = Client(c)
@@ -144,13 +144,13 @@ def test_sweep_file_errors_name_the_key(tmp_path, dist):
         _sweep(tmp_path, TINY.split("[estimators.KF]")[0])
     with pytest.raises(SweepError, match="estimators.KF.no_such"):
         _sweep(tmp_path, TINY.replace("[estimators.bad]", "no_such = 1\n[estimators.bad]")).check(dist)
-    proc = subprocess.run([sys.executable, "-m", "harness", "sweep", "no_such_sweep"], capture_output=True,
+    proc = subprocess.run([sys.executable, "-m", "suspension_estimation.harness", "sweep", "no_such_sweep"], capture_output=True,
                           text=True, cwd=tmp_path, timeout=60)
     assert proc.returncode == 1 and proc.stderr.count("\n") == 1 and "no_such_sweep" in proc.stderr
 
 
 def test_paper_runs_on_dask_reuse_the_workers_fmus_with_the_same_numbers(dist, cluster):
-    from harness.sweep import run_specs
+    from suspension_estimation.harness.sweep import run_specs
 
     specs = [runner.RunSpec("table2", 3, s, 0.5, 0.1, 1e-3, str(dist), mass=590.0) for s in (1, 2, 3)]
     specs.insert(1, runner.RunSpec("table2", 9, 1, 0.5, 0.1, 1e-3, str(dist)))  # no ISO class 9
@@ -171,7 +171,7 @@ def test_paper_runs_on_dask_reuse_the_workers_fmus_with_the_same_numbers(dist, c
     (["paper", "--dask", "--seeds", "1"], "distributed"),
 ])
 def test_without_the_sweep_extra_the_commands_name_it(argv, missing, dist, tmp_path, monkeypatch, capsys):
-    from harness.cli import main
+    from suspension_estimation.harness.cli import main
 
     monkeypatch.setitem(sys.modules, missing, None)  # as if not installed
     assert main([*argv, "--dist", str(dist), "--out", str(tmp_path / "out"), "-q"]) == 1

@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 from scipy.stats import invwishart
 
-from estimators.kalman import LinearKF
-from estimators.model import DiscreteModel
-from estimators.vb_akf import VBAKF, vb_update
-from harness.vb_study import noise_growth
-from plant import iso8608
-from plant.quarter_car import QuarterCar, SensorNoise
-from plant.road import SyntheticRoad
-from plant.vehicle import DEFAULT_VEHICLE
+from suspension_estimation.estimators.kalman import LinearKF
+from suspension_estimation.estimators.model import DiscreteModel
+from suspension_estimation.estimators.vb_akf import VBAKF, vb_update
+from suspension_estimation.harness.vb_study import noise_growth
+from suspension_estimation.plant import iso8608
+from suspension_estimation.plant.quarter_car import QuarterCar, SensorNoise
+from suspension_estimation.plant.road import SyntheticRoad
+from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE
 
 
 def _spd(rng, n, scale=1.0):

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from estimators.vb_akf import VBAKF
-from harness.vb_study import (CLASS_Q, CLASS_R, PAPER_VEHICLE, kalman_runs, paper_model,
+from suspension_estimation.estimators.vb_akf import VBAKF
+from suspension_estimation.harness.vb_study import (CLASS_Q, CLASS_R, PAPER_VEHICLE, kalman_runs, paper_model,
                               paper_scenario, simulate, vb_runs)
-from plant.quarter_car import discretise, state_matrices
+from suspension_estimation.plant.quarter_car import discretise, state_matrices
 
 
 def test_paper_model_is_the_plant_in_relative_coordinates():

@@ -19,8 +19,8 @@ sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 import numpy as np  # noqa: E402
 
 from fmu_driver import Driven  # noqa: E402
-from plant import iso8608  # noqa: E402
-from plant.vehicle import DEFAULT_VEHICLE  # noqa: E402
+from suspension_estimation.plant import iso8608  # noqa: E402
+from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE  # noqa: E402
 from test_plant_fmu import OUT, QUIET, bump, drive, reference, sweep  # noqa: E402
 
 

@@ -5,4 +5,4 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tools/setup.sh
 echo "run: co-simulating the default scenario, road -> plant -> estimator, 20 s at 1 ms (about 10 s, then the plots)" >&2
-.venv/bin/python -m harness run default "$@"
+.venv/bin/python -m suspension_estimation.harness run default "$@"

@@ -13,7 +13,7 @@ if [ ! -x .venv/bin/python ]; then
 fi
 stamp=.venv/.installed-pyproject
 want="$(sha256sum pyproject.toml | cut -d' ' -f1) .[test]"
-if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ] && .venv/bin/python -c "import harness, plant, estimators" 2>/dev/null; then
+if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ] && .venv/bin/python -c "import suspension_estimation.harness, suspension_estimation.estimators" 2>/dev/null; then
   say "dependencies unchanged since the last set-up (pyproject.toml), not reinstalled"
 else
   say "installing the project and its dependencies into .venv (pip install -e \".[test]\": numpy, scipy, FMPy," \

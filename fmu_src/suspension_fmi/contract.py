@@ -9,9 +9,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from plant import iso8608
-from plant.quarter_car import NOISE_STD_RANGES, SensorNoise
-from plant.vehicle import DEFAULT_VEHICLE, VEHICLE_RANGES
+from ..plant import iso8608
+from ..plant.quarter_car import NOISE_STD_RANGES, SensorNoise
+from ..plant.vehicle import DEFAULT_VEHICLE, VEHICLE_RANGES
 
 # unit name -> SI base-unit exponents, for <UnitDefinitions>
 UNITS: dict[str, dict[str, float]] = {

@@ -1,4 +1,4 @@
-"""The papers' simulation studies through the built FMUs: ``python -m harness paper [--study NAME]``.
+"""The papers' simulation studies through the built FMUs: ``python -m suspension_estimation.harness paper [--study NAME]``.
 
 One module per study, over one shared runner (``harness.studies.runner``: runs, process pool,
 common table and plot helpers); ``harness.studies.suite.PaperStudy`` runs the chosen studies and

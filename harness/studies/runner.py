@@ -1,4 +1,4 @@
-"""The shared runner of the studies of ``python -m harness paper`` (one module per study in
+"""The shared runner of the studies of ``python -m suspension_estimation.harness paper`` (one module per study in
 ``harness.studies``; ``harness.sweep`` runs the same table-2 run on Dask).
 
 A run is one independent co-simulation through the built FMUs, described by a ``RunSpec``. The
@@ -470,7 +470,7 @@ def whole_steps(duration: float, step: float) -> bool:
 # a study
 # --------------------------------------------------------------------------------------------------
 class Study:
-    """One study of ``python -m harness paper``: a module of ``harness.studies`` holds it and the
+    """One study of ``python -m suspension_estimation.harness paper``: a module of ``harness.studies`` holds it and the
     registry ``harness.studies.STUDIES`` names it. Every method gets the ``PaperStudy`` that runs
     it (``suite``: the command's options ``seeds``, ``duration``, ``warmup``, ``step``,
     ``classes``, ``class_seeds``, ``dist``, and after the runs ``results`` with ``ok``, ``cell``

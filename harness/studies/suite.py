@@ -1,4 +1,4 @@
-"""``python -m harness paper``: run the chosen studies of ``harness.studies`` through the built
+"""``python -m suspension_estimation.harness paper``: run the chosen studies of ``harness.studies`` through the built
 FMUs and write one report (paper_tables.md, paper_runs.json, figures).
 
 The runs of all chosen studies go to one pool of ``spawn`` worker processes (``runner.run_all``;
