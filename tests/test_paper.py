@@ -142,15 +142,6 @@ def test_classes_and_arguments_are_checked(dist):
         PaperStudy(duration=10.0005, dist=dist).check()
 
 
-def test_the_workers_leave_the_fmus_their_own_packages():
-    """All FMUs of a process share one module cache: a worker that imported the source tree's
-    ``plant`` or ``estimators`` would run them instead of the copies bundled in the FMUs."""
-    code = ("import sys, harness.studies.suite, harness.studies.paper000, harness.studies.paper001, "
-            "harness.studies.road_class; print(sorted(m for m in ('plant', 'estimators') if m in sys.modules))")
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=60)
-    assert proc.returncode == 0 and proc.stdout.strip() == "[]", proc.stdout + proc.stderr
-
-
 def test_the_online_class_study_identifies_the_class(dist):
     from suspension_estimation.harness.studies import road_class
     from suspension_estimation.harness.studies.runner import run_one

@@ -77,7 +77,7 @@ class Mass(Study):
                              f"{suite.step} s steps")
 
     def specs(self, suite) -> list[RunSpec]:
-        from suspension_estimation.plant.vehicle import PAPER001_VEHICLE as v  # in the parent only (see harness.studies.runner)
+        from suspension_estimation.plant.vehicle import PAPER001_VEHICLE as v
 
         d = str(Path(suite.dist).resolve())
         return [RunSpec("mass", 3, s, MASS_DURATION, 0.0, suite.step, d, mass=MASS_SCHEDULE[0][1],

@@ -11,10 +11,9 @@ run that fails (an FMU refusing, or anything else) is reported with its reason a
 on. The estimators' row after ``doStep(t, h)`` and the road's row of the same time stamp both
 describe the instant t + h.
 
-The worker processes must not import the project's ``plant`` or ``estimators`` packages: the FMUs
-they load bundle their own copies, and all FMUs of a process share one module cache, so a package
-imported from the source tree first would replace the bundled one (and ``--dist`` would no longer
-say what runs). No module of ``harness.studies`` imports them at module level.
+The FMUs bundle their own copies of ``plant`` and ``estimators`` under a package name private to
+their build (build.py), so a worker may import the installed ones too: what runs in an FMU is
+what ``--dist`` holds.
 
 This module imports nothing of ``harness.studies`` nor ``harness.sweep``.
 """
