@@ -27,8 +27,8 @@ from .suspension_forces import DEFAULT_BUMP_STOPS, G, AirSpring, BumpStops, Piec
 from .vehicle import Vehicle
 
 H_MAX = 0.5e-3  # s, the longest RK4 substep: wheel hop (11 Hz) and the stops at omega*h < 0.1
-# The air volume is never taken below this fraction of V_0 (the bump stop keeps the car far from
-# it): the force stays finite if a road drives the suspension through its stops anyway.
+# The model holds while the air volume stays above this fraction of V_0 (the bump stop keeps the
+# car far from it): beyond it a step is refused, and the force is held finite until then.
 _MIN_VOLUME_RATIO = 0.01
 
 
@@ -47,9 +47,11 @@ def _constants(vehicle: Vehicle, spring: AirSpring | None, damper: PiecewiseDamp
     """Everything the right-hand side needs, as plain floats (picklable, fast to unpack)."""
     if spring is None:
         air = (0.0, 0.0, 0.0)
+        closed = math.inf
     else:
         air = (spring.air_area * spring.static_pressure(m_s), spring.air_area / spring.air_volume,
                spring.air_kappa)
+        closed = (1.0 - _MIN_VOLUME_RATIO) * spring.air_volume / spring.air_area
     if damper is None:
         c = vehicle.c_s
         damp = (c, c, math.inf, math.inf, c, c)
@@ -59,12 +61,12 @@ def _constants(vehicle: Vehicle, spring: AirSpring | None, damper: PiecewiseDamp
     k_b = stops.bump_stop_stiffness
     gaps = (stops.bump_stop_gap, stops.rebound_stop_gap) if k_b > 0 else (math.inf, math.inf)
     return (spring is not None, vehicle.k_s, *air, *damp, *gaps, k_b, vehicle.k_t, m_s, vehicle.m_u,
-            (m_s + vehicle.m_u) * G)
+            (m_s + vehicle.m_u) * G, closed)
 
 
 def _rhs(c: tuple, z_s: float, v_s: float, z_u: float, v_u: float, road: float) -> tuple[float, float, float]:
     """(a_s, a_u, damper power F_d v) at the state, road held at ``road``."""
-    air, k_s, a, b, kappa, c_r, c_c, v_r, v_c, c_rh, c_ch, gap_c, gap_r, k_b, k_t, m_s, m_u, load = c
+    air, k_s, a, b, kappa, c_r, c_c, v_r, v_c, c_rh, c_ch, gap_c, gap_r, k_b, k_t, m_s, m_u, load, _ = c
     d = z_u - z_s
     if air:
         ratio = 1.0 - b * d
@@ -137,13 +139,13 @@ class NonlinearQuarterCar(QuarterCar):
         """Advance by h seconds with the road held at ``road_height`` (m); RK4 substeps."""
         self._set_mass(self.vehicle.m_s if m_s is None else m_s)
         c = self._c
-        gap_c, gap_r, k_t, load = c[11], c[12], c[14], c[17]
+        gap_c, gap_r, k_t, load, closed = c[11], c[12], c[14], c[17], c[18]
         n = max(1, math.ceil(h / H_MAX - 1e-9))
         dt = h / n
         r = road_height
         z_s, v_s, z_u, v_u = x0 = self.x.tolist()
         e = self.dissipated
-        contact, stop = 1, 0
+        contact, stop, d_max = 1, 0, 0.0
         for _ in range(n):
             a1, b1, p1 = _rhs(c, z_s, v_s, z_u, v_u, r)
             q = 0.5 * dt
@@ -160,15 +162,20 @@ class NonlinearQuarterCar(QuarterCar):
             v_u += k * (b1 + 2 * b2 + 2 * b3 + b4)
             e += k * (p1 + 2 * p2 + 2 * p3 + p4)
             d = z_u - z_s
+            if d > d_max:
+                d_max = d
             if d > gap_c:
                 stop = 1
             elif d < -gap_r:
                 stop = 2
             if k_t * (r - z_u) < -load:
                 contact = 0
+        if not d_max < closed:
+            raise ValueError(f"at road_height = {r!r} m the suspension was compressed by {d_max:.4g} m, past "
+                             f"{closed:.4g} m = 99 % of the air spring's stroke air_volume/air_area: the model "
+                             "does not hold there")
         if not all(map(math.isfinite, (z_s, v_s, z_u, v_u))):
-            raise ValueError(f"the plant's state became non-finite at road_height = {r!r} m: the "
-                             "suspension was driven through its stops beyond the air spring's volume")
+            raise ValueError(f"at road_height = {r!r} m the plant's state became non-finite")
         if self.acc_sampling == 1:
             acc = ((v_s - x0[1]) / h, (v_u - x0[3]) / h)
         else:
