@@ -185,7 +185,8 @@ DEFAULT_DAMPER = PiecewiseDamper(
     damper_c_rebound=1.5 * DEFAULT_VEHICLE.c_s, damper_c_compression=0.5 * DEFAULT_VEHICLE.c_s,
     damper_knee_rebound=0.3, damper_knee_compression=0.3,
     damper_c_rebound_high=0.6 * DEFAULT_VEHICLE.c_s, damper_c_compression_high=0.2 * DEFAULT_VEHICLE.c_s)
-# Bump stops 0.1 m from the static point each way, 10 k_s stiff: the linear default car reaches
-# at most 0.073 m of deflection on 60 s of ISO D at 80 km/h, so ordinary roads do not touch them.
+# Bump stops 0.1 m from the static point each way (a passenger car's travel), 10 k_s stiff: roads
+# up to ISO C at 80 km/h and ISO D at 40 km/h do not touch them; ISO D at 80 km/h does, rarely
+# (benchmarks/nonlinear_plant.py).
 DEFAULT_BUMP_STOPS = BumpStops(bump_stop_gap=0.1, rebound_stop_gap=0.1,
                                bump_stop_stiffness=10 * DEFAULT_VEHICLE.k_s)
