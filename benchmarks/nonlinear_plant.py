@@ -25,7 +25,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from plant import iso8608, nonlinear_car  # noqa: E402
 from plant.quarter_car import QuarterCar  # noqa: E402
 from plant.road import SyntheticRoad  # noqa: E402
-from test_nonlinear_plant import QUIET, bump, car, iso_d, peak_error, reference, run_core  # noqa: E402
+from test_nonlinear_plant import (QUIET, bump, car, energy_balance, iso_d, peak_error, reference,  # noqa: E402
+                                  run_core)
 
 SIGNALS = ["z_s", "v_s", "z_u", "v_u", "a_s", "a_u"]
 
@@ -45,35 +46,16 @@ def against_dop853() -> None:
             print(f"| {name} | {h * 1e3:g} | " + " | ".join(f"{e:.2e}" for e in err) + f" | {us:.0f} |")
 
 
-def energy_balance() -> None:
-    from test_nonlinear_plant import V, DEFAULT_AIR_SPRING, DEFAULT_BUMP_STOPS, G
-
-    h, m_s = 0.001, V.m_s
-    road = iso_d(h, 4.0, kmh=100.0)
-    load = (m_s + V.m_u) * G
-
-    def tyre_energy(e):
-        e0 = -load / V.k_t
-        return 0.5 * V.k_t * e * e if e >= e0 else 0.5 * V.k_t * e0 * e0 - load * (e - e0)
-
+def energy() -> None:
+    road = iso_d(0.001, 4.0, kmh=100.0)
     print("| RK4 substep (ms) | road work (J) | damper work (J) | final energy (J) | residual (J) | steps off the road |")
     print("|---|---|---|---|---|---|")
     default = nonlinear_car.H_MAX
     for h_max in (1e-3, 0.5e-3, 0.25e-3):
         nonlinear_car.H_MAX = h_max
-        p = car()
-        p.settle(0.0)
-        work, r_prev, lost = 0.0, 0.0, 0
-        for r in road:
-            work += tyre_energy(r - p.x[2]) - tyre_energy(r_prev - p.x[2])
-            p.step(r, h)
-            r_prev = r
-            lost += 1 - p.tire_contact
-        z_s, v_s, z_u, v_u = p.x
-        d = z_u - z_s
-        e = (0.5 * m_s * v_s ** 2 + 0.5 * V.m_u * v_u ** 2 + DEFAULT_AIR_SPRING.energy(d, m_s)
-             + DEFAULT_BUMP_STOPS.energy(d) + tyre_energy(road[-1] - z_u))
-        print(f"| {h_max * 1e3:g} | {work:.2f} | {p.dissipated:.2f} | {e:.3f} | {e - (work - p.dissipated):.1e} | {lost} |")
+        b = energy_balance(road, 0.001)
+        print(f"| {h_max * 1e3:g} | {b['road_work']:.2f} | {b['dissipated']:.2f} | {b['final']:.3f} | "
+              f"{b['residual']:.1e} | {b['steps_off_road']} |")
     nonlinear_car.H_MAX = default
 
 
@@ -123,7 +105,7 @@ def main() -> int:
     print()
     against_dop853()
     print()
-    energy_balance()
+    energy()
     print()
     against_linearisation()
     return 0

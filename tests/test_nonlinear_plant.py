@@ -92,13 +92,13 @@ def test_core_matches_dop853_within_a_tenth_of_a_percent_of_the_peak(h, make_roa
     assert np.max(np.abs(ref[:, 1] - ref[:, 3])) > 0.45
 
 
-def test_energy_balance_over_iso_d():
-    """Kinetic + air-spring + stop + tyre energy changes by the work of the road minus the damper's.
+def energy_balance(road: np.ndarray, h: float) -> dict:
+    """Run the default car over ``road`` and account for its energy (J).
 
+    Kinetic + air-spring + stop + tyre energy changes by the work of the road minus the damper's.
     With the road held over a step, the road does its work at the step boundaries, where it moves
     under the tyre and changes the tyre's stored energy at fixed z_u."""
-    h, m_s = 0.001, V.m_s
-    road = iso_d(h, 4.0, kmh=100.0)
+    m_s = V.m_s
     load = (m_s + V.m_u) * G
 
     def tyre_energy(e):  # integral of the dynamic tyre force over its compression e = z_r - z_u
@@ -121,12 +121,17 @@ def test_energy_balance_over_iso_d():
         e.append(energy(p.x, r))
         r_prev = r
         lost += 1 - p.tire_contact
-    residual = e[-1] - (road_work - p.dissipated)
-    assert lost > 0  # the tyre left the road: the clipped tyre force is in the balance
-    assert p.dissipated > 10 * max(e)  # the damper matters in it
+    return {"road_work": road_work, "dissipated": p.dissipated, "final": e[-1], "peak": max(e),
+            "residual": e[-1] - (road_work - p.dissipated), "steps_off_road": lost}
+
+
+def test_energy_balance_over_iso_d():
+    b = energy_balance(iso_d(0.001, 4.0, kmh=100.0), 0.001)
+    assert b["steps_off_road"] > 0  # the tyre left the road: the clipped tyre force is in the balance
+    assert b["dissipated"] > 10 * b["peak"]  # the damper matters in it
     # RK4's error: 3e-3 J at the 0.5 ms substep, 5e-4 J at 0.25 ms; leaving out the contact loss
     # from the tyre's energy would make it 57 J
-    assert abs(residual) < 1e-5 * p.dissipated, (residual, p.dissipated)
+    assert abs(b["residual"]) < 1e-5 * b["dissipated"], b
 
 
 def test_air_spring_matches_the_paper_law_and_its_linearisation():
