@@ -57,6 +57,11 @@ class AirSpring:
         integral = -math.log(ratio) / b if k == 1.0 else (ratio ** (1.0 - k) - 1.0) / (b * (k - 1.0))
         return a * (integral - delta)
 
+    def slope(self, delta: float, m_s: float) -> float:
+        """dF/d delta (N/m) at compression ``delta`` (m): kappa p_0 A_e^2 / V_0 (V_0 / V)^(kappa + 1)."""
+        ratio = 1.0 - self.air_area / self.air_volume * delta
+        return self.stiffness(m_s) * ratio ** (-self.air_kappa - 1.0)
+
     def stiffness(self, m_s: float) -> float:
         """Linearisation dF/d delta at the static point (N/m): kappa p_0 A_e^2 / V_0."""
         return self.air_kappa * self.static_pressure(m_s) * self.air_area ** 2 / self.air_volume
@@ -110,6 +115,12 @@ class PiecewiseDamper:
         if v >= -knee:
             return self.damper_c_compression * v
         return -self.damper_c_compression * knee + self.damper_c_compression_high * (v + knee)
+
+    def slope(self, v: float) -> float:
+        """dF/dv (N.s/m) at suspension velocity v (m/s); at v = 0 the rebound side's."""
+        if v >= 0.0:
+            return self.damper_c_rebound if v <= self.damper_knee_rebound else self.damper_c_rebound_high
+        return self.damper_c_compression if v >= -self.damper_knee_compression else self.damper_c_compression_high
 
     def damping(self) -> float:
         """Equivalent linear damping (N.s/m) at the static point: the mean of the two low-speed
