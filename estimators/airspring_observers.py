@@ -24,6 +24,7 @@ do not model the bump stops or contact loss.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -34,7 +35,7 @@ from plant.suspension_forces import AirSpring, PiecewiseDamper
 from plant.vehicle import Vehicle
 
 from .kalman import stationary_covariance
-from .model import IVR, IVS, IVU, IZS, N_STATES, DiscreteModel, RoadModel, output_matrix, road_coefficients, state_matrix
+from .model import IVS, IZS, N_STATES, DiscreteModel, RoadModel, output_matrix, road_coefficients, state_matrix
 
 
 @dataclass(frozen=True)
@@ -52,7 +53,7 @@ class NonlinearModel:
     gd_n0: float
     road: RoadModel = field(default_factory=RoadModel)
 
-    def forces(self, x: np.ndarray, m_s: float) -> tuple[float, float]:
+    def forces(self, x, m_s: float) -> tuple[float, float]:
         """(spring's dynamic force, damper force) in N at state x."""
         d = x[2] - x[0]
         v = x[1] - x[3]
@@ -60,30 +61,37 @@ class NonlinearModel:
         f_d = self.vehicle.c_s * v if self.damper is None else self.damper.force(v)
         return f_s, f_d
 
+    def _accelerations(self, x, m_s: float) -> tuple[float, float]:
+        f_s, f_d = self.forces(x, m_s)
+        return (f_s - f_d) / m_s, (f_d - f_s + self.vehicle.k_t * (x[4] - x[2])) / self.vehicle.m_u
+
     def measure(self, x: np.ndarray, m_s: float) -> np.ndarray:
         """[a_s, a_u, z_s - z_u]: the physical accelerations (m/s^2) and the deflection (m)."""
-        f_s, f_d = self.forces(x, m_s)
-        v = self.vehicle
-        return np.array([(f_s - f_d) / m_s, (f_d - f_s + v.k_t * (x[4] - x[2])) / v.m_u, x[0] - x[2]])
+        return np.array([*self._accelerations(x, m_s), x[0] - x[2]])
 
-    def derivative(self, x: np.ndarray, m_s: float) -> np.ndarray:
-        """x' without noise: the equations of motion, the road filter and the common-mode reference."""
-        a_s, a_u, _ = self.measure(x, m_s)
+    def _derivative(self, x, m_s: float) -> list[float]:
+        # scalar floats: numpy's per-call overhead on 6-vectors would cost ten times the arithmetic
+        a_s, a_u = self._accelerations(x, m_s)
         a1, a2 = road_coefficients(self.speed, self.road)
         a_r = -a1 * x[4] - a2 * x[5]
         if self.road.f_ref > 0:
-            w = 2 * np.pi * self.road.f_ref
+            w = 2 * math.pi * self.road.f_ref
             ref = -w * w * x[IZS] - 2 * self.road.zeta_ref * w * x[IVS]
             a_s, a_u, a_r = a_s + ref, a_u + ref, a_r + ref
-        return np.array([x[1], a_s, x[3], a_u, x[5], a_r])
+        return [x[1], a_s, x[3], a_u, x[5], a_r]
+
+    def derivative(self, x: np.ndarray, m_s: float) -> np.ndarray:
+        """x' without noise: the equations of motion, the road filter and the common-mode reference."""
+        return np.array(self._derivative(list(map(float, x)), m_s))
 
     def propagate(self, x: np.ndarray, m_s: float, h: float) -> np.ndarray:
         """x after h seconds (one classical RK4 step)."""
-        k1 = self.derivative(x, m_s)
-        k2 = self.derivative(x + 0.5 * h * k1, m_s)
-        k3 = self.derivative(x + 0.5 * h * k2, m_s)
-        k4 = self.derivative(x + h * k3, m_s)
-        return x + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+        x0 = list(map(float, x))
+        k1 = self._derivative(x0, m_s)
+        k2 = self._derivative([a + 0.5 * h * b for a, b in zip(x0, k1)], m_s)
+        k3 = self._derivative([a + 0.5 * h * b for a, b in zip(x0, k2)], m_s)
+        k4 = self._derivative([a + h * b for a, b in zip(x0, k3)], m_s)
+        return np.array([a + h / 6.0 * (b + 2 * c + 2 * d + e) for a, b, c, d, e in zip(x0, k1, k2, k3, k4)])
 
     def local_vehicle(self, x: np.ndarray, m_s: float) -> Vehicle:
         """The linear vehicle with the spring's and the damper's slopes at x."""
@@ -148,7 +156,8 @@ class EKF:
 
 
 class UKF:
-    """Unscented Kalman filter on ``NonlinearModel`` (filterpy's UnscentedKalmanFilter)."""
+    """Unscented Kalman filter on ``NonlinearModel`` (filterpy's UnscentedKalmanFilter, Merwe's
+    scaled sigma points)."""
 
     def __init__(self, model: NonlinearModel, h: float, R: np.ndarray, m_s: float, alpha: float = 0.5):
         self.model, self.h, self.m_s = model, float(h), float(m_s)
@@ -173,7 +182,8 @@ class UKF:
 class DualObserver:
     """Paper 003's dual observer: the state filter (``EKF``) runs at the mass estimate, and a scalar
     Kalman filter on theta = 1/m_s (random walk, intensity ``q_theta`` in 1/kg^2/s) updates that
-    estimate from the body acceleration at the state estimate.
+    estimate from the body acceleration, with the regressor taken at the state filter's prediction
+    (which does not yet contain this step's acceleration noise).
 
     ``acc_std`` (m/s^2) is the body-acceleration error the mass filter assumes: sensor noise plus
     the state estimate's model error."""
