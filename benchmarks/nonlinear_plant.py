@@ -48,7 +48,8 @@ def against_dop853() -> None:
 
 def energy() -> None:
     road = iso_d(0.001, 4.0, kmh=100.0)
-    print("| RK4 substep (ms) | road work (J) | damper work (J) | final energy (J) | residual (J) | steps off the road |")
+    print("| RK4 substep (ms) | road work (J) | damper work (J) | final energy (J) | residual (J) "
+          "| steps off the road |")
     print("|---|---|---|---|---|---|")
     default = nonlinear_car.H_MAX
     for h_max in (1e-3, 0.5e-3, 0.25e-3):

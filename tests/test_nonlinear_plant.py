@@ -266,10 +266,11 @@ def test_a_road_through_the_stops_is_refused_not_garbage(driven):
 
 
 @pytest.mark.parametrize("params, name", [
-    ({"air_area": 0.0}, "air_area"), ({"air_volume": -1e-3}, "air_volume"), ({"air_pressure_max": 0.0}, "air_pressure_max"),
-    ({"air_kappa": 0.9}, "air_kappa"), ({"air_kappa": 1.5}, "air_kappa"), ({"damper_c_rebound": 0.0}, "damper_c_rebound"),
-    ({"damper_c_compression_high": -100.0}, "damper_c_compression_high"), ({"damper_knee_rebound": 0.0}, "damper_knee_rebound"),
-    ({"bump_stop_gap": float("nan")}, "bump_stop_gap"), ({"damper_model": 2}, "damper_model"),
+    ({"air_area": 0.0}, "air_area"), ({"air_volume": -1e-3}, "air_volume"),
+    ({"air_pressure_max": 0.0}, "air_pressure_max"), ({"air_kappa": 0.9}, "air_kappa"), ({"air_kappa": 1.5}, "air_kappa"),
+    ({"damper_c_rebound": 0.0}, "damper_c_rebound"), ({"damper_c_compression_high": -100.0}, "damper_c_compression_high"),
+    ({"damper_knee_rebound": 0.0}, "damper_knee_rebound"), ({"bump_stop_gap": float("nan")}, "bump_stop_gap"),
+    ({"damper_model": 2}, "damper_model"),
 ])
 def test_unphysical_parameter_is_refused_naming_it_and_its_range(driven, params, name):
     p = driven("QuarterCar", **{**NONLINEAR, **params})
