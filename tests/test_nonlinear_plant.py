@@ -93,8 +93,9 @@ def test_core_matches_dop853_within_a_tenth_of_a_percent_of_the_peak(h, make_roa
     avg.settle(0.0)
     ref_avg = np.diff(np.vstack([np.zeros(2), ref[:, [1, 3]]]), axis=0) / h
     assert np.all(peak_error(run_core(avg, road, h)[:, 4:6], ref_avg) < 1e-3)
-    # the run is nonlinear: it goes past the damper's knees (0.3 m/s)
+    # the run is nonlinear: it goes past the damper's knees (0.3 m/s) and the tyre leaves the road
     assert np.max(np.abs(ref[:, 1] - ref[:, 3])) > 0.45
+    assert np.any(V.k_t * (road - ref[:, 2]) < -(V.m_s + V.m_u) * G)
 
 
 def energy_balance(road: np.ndarray, h: float) -> dict:
