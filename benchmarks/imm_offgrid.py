@@ -15,8 +15,8 @@ ISO 8608 road (``plant.road.SyntheticRoad``) at 40 km/h, 1 ms, its sprung mass s
   "RLS m, c" the same with ``estimate_damping`` (paper 001's theta = [m_s, c]).
 
 Every estimator is told the vehicle's nominal c_s = 2000 N.s/m; with ``--damping -0.2`` the
-plant's is 20 % lower. The sub-models' road: spatial corner ``--n-hi`` (default 30 1/m, a 2 kHz
-pole at 40 km/h) and the intensity of ISO class ``--q-class`` (default F, as the default road
+plant's is 20 % lower. The sub-models' road: spatial corner ``--n-hi`` (default 30 1/m, a pole at
+2.1e3 rad/s at 40 km/h) and the intensity of ISO class ``--q-class`` (default F, as the default road
 filter's q_class_min).
 
 Per segment: steady error = mean |error| over its last 40 %, settling = time after the step
