@@ -1,4 +1,5 @@
-"""The variable contract of the three FMUs (see fmu-interface.md): one table per FMU.
+"""The variable contract of the three FMUs: one table per FMU (docs/fmu-interface.md is generated
+from it by ``python build.py --docs``).
 
 Every FMU class registers exactly these variables, the model description gets its units and
 descriptions from here, and the FMUs validate their parameters against ``allowed``.
@@ -200,7 +201,11 @@ def allowed_text(var: Var) -> str:
         return "{" + ", ".join(f"{k} = {v}" for k, v in a.items()) + "}"
     low, high, *incl = a
     lo_in, hi_in = (incl + [True, True])[:2]
-    return f"{'[' if lo_in else '('}{low:g}, {high:g}{']' if hi_in else ')'}"
+    return f"{'[' if lo_in else '('}{_number(low)}, {_number(high)}{']' if hi_in else ')'}"
+
+
+def _number(x: float) -> str:
+    return str(x) if isinstance(x, int) else f"{x:g}"
 
 
 def problem(var: Var, value: object) -> str | None:
