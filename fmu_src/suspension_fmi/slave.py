@@ -18,7 +18,10 @@ from xml.etree.ElementTree import Element, SubElement, tostring
 from pythonfmu import Boolean, DefaultExperiment, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
+from . import quick_exit
 from .contract import CONTRACTS, DEPENDENCIES, UNITS, Var, problem
+
+quick_exit.install()  # opt-in (SUSPENSION_FMU_QUICK_EXIT=1): see quick_exit.py
 
 _TYPES = {"Real": Real, "Integer": Integer, "Boolean": Boolean, "String": String}
 _ZERO = {"Real": 0.0, "Integer": 0, "Boolean": False, "String": ""}
