@@ -33,6 +33,7 @@ import numpy as np
 
 from plant import iso8608
 from plant.quarter_car import NOISE_STD_RANGES
+from plant.step_size import same_step
 from plant.vehicle import Vehicle, VEHICLE_RANGES, check_range
 
 from .kalman import LinearKF, MMEKF, error_buildup
@@ -211,6 +212,8 @@ class SuspensionEstimator:
         self._confirmed_for = 0.0  # s the model mass has agreed with the data without a break
         self._resets_seen = 0
         self.refilters = 0
+        self.model_builds = 0  # discretisations of the road filter's model (each costs ~1-3 ms)
+        self.mass_rebuilds = 0  # changes of the model mass by the mass feedback
         # deficit of the error variance of a start from rest (see road_height_std): made at the
         # first model, None when the estimate has not (re)started from rest
         self._buildup: tuple[float, np.ndarray] | None = None
@@ -332,6 +335,7 @@ class SuspensionEstimator:
             self._epoch_step = self._steps  # steps before this one used another model
         if same_rest:
             v = m.speed  # a mass rebuild keeps the speed the buffered steps were filtered at
+        self.model_builds += 1
         self.model = DiscreteModel.build(self.cfg.vehicle(self.m_model), v, gd, h,
                                          self.cfg.road_model, self.cfg.model_noise,
                                          self.cfg.use_deflection, self.acc_sampling,
@@ -443,10 +447,13 @@ class SuspensionEstimator:
     def step(self, acc_sprung: float, acc_unsprung: float, deflection: float, speed: float,
              h: float) -> dict[str, float]:
         """Process one sample: accelerations (m/s^2), deflection z_s - z_u (m), speed (m/s),
-        step h (s) since the previous sample. Returns the contract's outputs (SI units)."""
+        step h (s) since the previous sample. Returns the contract's outputs (SI units). A step
+        that differs from the model's by rounding only is the model's step (plant.step_size)."""
         cfg = self.cfg
         if not (math.isfinite(h) and h > 0):
             raise ValueError(f"step size h = {h!r} must be finite and > 0")
+        if self.model is not None:
+            h = same_step(h, self.model.h)
         if not math.isfinite(speed):
             speed = self.model.speed if self.model is not None else 0.0
         status = STATUS_OK
@@ -533,6 +540,7 @@ class SuspensionEstimator:
                 if not agree and self.time - self._last_rebuild >= cfg.mass_rebuild_interval:
                     self.m_model = m
                     self._last_rebuild = self.time
+                    self.mass_rebuilds += 1
                     if cfg.refilter_span > 0:
                         self._ensure_model(speed, h)  # rebuild now and re-filter the change
                         if not self._episode_closed():
