@@ -213,7 +213,7 @@ class ContractSlave(Fmi2Slave):
         root.set("generationDateAndTime", "")
         content = tostring(root)
         root.set("guid", "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, content.decode())) + "}")
-        root.set("generationDateAndTime", generation_date())
+        root.set("generationDateAndTime", _generation_date())
         return root
 
 
@@ -242,7 +242,7 @@ def _project_version() -> str | None:
         return None
 
 
-def generation_date() -> str:
+def _generation_date() -> str:
     """``generationDateAndTime``: ``SOURCE_DATE_EPOCH`` (s, for reproducible builds) if set, else now (UTC)."""
     epoch = os.environ.get("SOURCE_DATE_EPOCH")
     t = (datetime.datetime.fromtimestamp(int(epoch), datetime.timezone.utc) if epoch
