@@ -265,3 +265,15 @@ def problem(var: Var, value: object) -> str | None:
     if isinstance(value, float) and not math.isfinite(value):
         return f"{var.name} = {value!r} is not a finite number (allowed range {allowed_text(var)})"
     return f"{var.name} = {value!r} is outside the allowed range {allowed_text(var)}"
+
+
+# Inputs each output depends on at a communication point (FMI 2.0 ModelStructure/Outputs
+# ``dependencies``; an output not listed depends on none). Every output is computed by doStep
+# from the inputs held over the step, so an input set at a communication point reaches no output
+# before the next doStep: no FMU has direct feedthrough, and a master can close a loop through
+# them without an algebraic loop. tests/test_model_structure.py checks this through the built FMUs.
+DEPENDENCIES: dict[str, dict[str, tuple[str, ...]]] = {
+    "ISORoad": {},
+    "QuarterCar": {},
+    "SuspensionEstimator": {},
+}
