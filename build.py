@@ -3,7 +3,10 @@
     python build.py [--dist DIR]
 
 Every FMU bundles the plain-Python core (plant/, estimators/) and the adapter package
-fmu_src/suspension_fmi/. With all three FMUs built, it also writes the fmucontainer wiring file
+fmu_src/suspension_fmi/. Before the FMUs are built, the road classifier's model
+(estimators/data/response_class_iso.json, plain data bundled with estimators/) is trained again
+from simulated data with fixed seeds (estimators.response_class_train); the file is also kept
+in the repository, and a rebuild writes it byte for byte the same (tests/test_response_class.py). With all three FMUs built, it also writes the fmucontainer wiring file
 SuspensionSystem.csv and builds the container FMU SuspensionSystem.fmu from it
 (harness/container.py). Exits non-zero with the reason if a build fails.
 """
@@ -55,6 +58,9 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     sys.path.insert(0, str(ROOT))
     try:
+        from estimators.response_class_train import write_iso_model
+
+        print(f"trained {write_iso_model().relative_to(ROOT)}")
         build(args.dist, args.names)
         try:
             from harness.ssp import write_system_ssps
