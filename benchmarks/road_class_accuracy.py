@@ -90,6 +90,12 @@ def main(argv: list[str] | None = None) -> int:
                               (v < 50 / 3, (v >= 50 / 3) & (v < 70 / 3), v >= 70 / 3))
         print(f"### {title}: {np.mean(pred == truth):.1%} of {len(truth)} blocks "
               f"(10-16.7 / 16.7-23.3 / 23.3-30 m/s: {by_speed})\n")
+        if kw["spread"]:
+            off = np.repeat(np.abs(np.log2(runs.gd / [iso8608.class_psd_n0(c) for c in runs.classes])),
+                            f.shape[1])
+            print(f"Within a factor sqrt(2) of the class value: {np.mean(pred[off < 0.5] == truth[off < 0.5]):.1%} "
+                  f"of {np.sum(off < 0.5)} blocks; farther out: {np.mean(pred[off >= 0.5] == truth[off >= 0.5]):.1%} "
+                  f"of {np.sum(off >= 0.5)} blocks\n")
         print(confusion(truth, pred, classes) + "\n")
 
     from harness import vb_study as V
