@@ -32,6 +32,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from plant import iso8608
+from plant.iri import IRIMeter
 from plant.quarter_car import NOISE_STD_RANGES
 from plant.step_size import same_step
 from plant.vehicle import Vehicle, VEHICLE_RANGES, check_range
@@ -47,7 +48,7 @@ from .steady_state import raw_error_variance
 
 OUTPUTS = ("road_height_est", "road_velocity_est", "road_height_std", "z_s_est", "v_s_est",
            "z_u_est", "v_u_est", "susp_deflection_est", "tire_deflection_est", "sprung_mass_est",
-           "road_class_est", "nis", "status")
+           "road_class_est", "nis", "status", "iri_est")
 
 STATUS_OK, STATUS_REJECTED, STATUS_REINIT = 0, 1, 2
 START_TERM_SPAN = 400.0  # s after a (re)start beyond which the start height is left out (g ~ 1e-8)
@@ -128,6 +129,7 @@ class EstimatorConfig:
     refilter_lookback: float = 0.1  # s before the RLS change detection (it comes up to 85 ms late)
     refilter_confirm: float = 0.5  # s of agreement of data and model mass that close an episode
     snapshot_interval: float = 0.02  # s between filter snapshots
+    iri_segment: float = 100.0  # m, segments of the IRI of the road estimate (plant/iri.py)
 
     def vehicle(self, m_s: float | None = None) -> Vehicle:
         return Vehicle(m_s=self.m_s_nominal if m_s is None else m_s, m_u=self.m_u, k_s=self.k_s,
@@ -190,6 +192,7 @@ class SuspensionEstimator:
         self.mass_est = (MassEstimator(cfg.m_s_nominal, cfg.k_s, cfg.c_s, cfg.forgetting_factor,
                                        cfg.estimate_damping, m_bounds=bounds) if cfg.mass_estimator == 1 else None)
         self.classifier = RoadClassifier(gain=cfg.class_gain)
+        self.iri = IRIMeter(cfg.iri_segment, start=0.0)  # raises a ValueError naming iri_segment
         self.model: DiscreteModel | None = None
         self._model_key: tuple | None = None
         self._class_height_std: dict[int, float] = {}  # m, ISO road-height std per class
@@ -594,4 +597,5 @@ class SuspensionEstimator:
         out["road_class_est"] = int(self.classifier.road_class)
         out["nis"] = float(kf.nis)  # of the last update (kept through rejected steps)
         out["status"] = status
+        out["iri_est"] = self.iri.update(self.distance, out["road_height_est"])
         return out
