@@ -92,7 +92,7 @@ class ResponseClassifier:
     adds up to ``model["window"]`` s; a block with a mean speed below ``min_speed`` keeps the
     previous class (the response of a car at rest says nothing of the road)."""
 
-    def __init__(self, model: dict | str | Path = ISO_MODEL, initial=0, min_speed: float = 1.0):
+    def __init__(self, model: dict | str | Path = ISO_MODEL, initial: int = 0, min_speed: float = 1.0):
         self.model = check_model(model) if isinstance(model, dict) else load_model(model)
         self.window = float(self.model["window"])
         self.min_speed = float(min_speed)
@@ -107,7 +107,7 @@ class ResponseClassifier:
         self._t = 0.0
         self._v = 0.0
 
-    def update(self, y, speed: float, dt: float):
+    def update(self, y, speed: float, dt: float) -> int:
         if len(y) != self._m:
             raise ValueError(f"y has {len(y)} values, the model's signals are {self.model['signals']}")
         for i in range(self._m):

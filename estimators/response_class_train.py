@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -75,9 +76,9 @@ def draw_gd(rng: np.random.Generator, road_class: int, spread: bool = True) -> f
     return iso8608.class_psd_n0(road_class) * (2.0 ** rng.uniform(-1, 1) if spread else 1.0)
 
 
-def simulate(n_runs: int, duration: float, seed: int, road_seeds=TRAIN_ROAD_SEEDS,
-             settle: float = 1.0, h: float = H, spread: bool = True,
-             noise: SensorNoise = SensorNoise(), vehicles=None) -> Runs:
+def simulate(n_runs: int, duration: float, seed: int, road_seeds: tuple[int, ...] = TRAIN_ROAD_SEEDS,
+             settle: float = 1.0, h: float = H, spread: bool = True, noise: SensorNoise = SensorNoise(),
+             vehicles: Callable[[int], Vehicle] | None = None) -> Runs:
     """``n_runs`` runs (classes A-E in turn) of ``duration`` s kept after ``settle`` s (module doc);
     ``vehicles(i)`` gives run i's vehicle instead of a draw.
 
@@ -123,7 +124,7 @@ def _r(a) -> list:
     return [float(f"{v:.10g}") for v in np.ravel(a)]
 
 
-def train(f: np.ndarray, labels: np.ndarray, signals=SIGNALS, window: float = WINDOW,
+def train(f: np.ndarray, labels: np.ndarray, signals: tuple[str, ...] = SIGNALS, window: float = WINDOW,
           speed_power: float = 1.0, C: float = 1.0) -> dict:
     """Model dict (``estimators.response_class``) of a linear one-vs-one SVM on features f."""
     from sklearn.svm import SVC
@@ -153,6 +154,7 @@ def train_iso_model(n_runs: int = 250, duration: float = 8.0, seed: int = TRAIN_
 
 
 def dumps(model: dict) -> str:
+    """The model file's text: sorted keys, one value a line, newline at the end."""
     return json.dumps(model, indent=1, sort_keys=True) + "\n"
 
 
@@ -166,7 +168,11 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=MODEL_DIR / ISO_MODEL)
     a = ap.parse_args(argv)
-    print(f"wrote {write_iso_model(a.out)}")
+    try:
+        print(f"wrote {write_iso_model(a.out)}")
+    except OSError as e:
+        print(f"response_class_train: cannot write {a.out}: {e.strerror}", file=sys.stderr)
+        return 1
     return 0
 
 
