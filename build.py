@@ -4,8 +4,13 @@
     python build.py --docs          # write docs/fmu-interface.md and the README's FMU table
 
 Every FMU bundles the plain-Python core (plant/, estimators/) and the adapter package
-fmu_src/suspension_fmi/. With all three FMUs built, it also writes the fmucontainer wiring file
-SuspensionSystem.csv and builds the container FMU SuspensionSystem.fmu from it
+fmu_src/suspension_fmi/. Before the FMUs are built, the road classifier's model
+(estimators/data/response_class_iso.json, plain data bundled with estimators/) is trained again
+from simulated data with fixed seeds (estimators.response_class_train) when its training code,
+the plant, scikit-learn or numpy changed, or the file is missing or edited; the file is also kept
+in the repository, and a retraining writes it byte for byte the same
+(tests/test_response_class.py). With all three FMUs built, it also writes the fmucontainer
+wiring file SuspensionSystem.csv and builds the container FMU SuspensionSystem.fmu from it
 (harness/container.py). An FMU is rebuilt only when its sources or build options changed: a hash
 of them per FMU is kept in dist/.build-stamps.json (``--force`` rebuilds all). Exits non-zero
 with the reason if a build fails.
@@ -101,6 +106,28 @@ def build(dist: Path, names: list[str] | None = None, force: bool = False) -> li
             print(f"built {out.relative_to(ROOT) if out.is_relative_to(ROOT) else out}")
         built.append(out)
     return built
+
+
+def train_if_changed(dist: Path, force: bool = False) -> tuple[Path, bool]:
+    """Retrain the road classifier's model (module doc) unless its stamp in ``dist`` says its
+    inputs and the file itself are unchanged. Returns (model file, retrained)."""
+    from estimators.response_class import ISO_MODEL, MODEL_DIR
+    from estimators.response_class_train import write_iso_model
+
+    out = MODEL_DIR / ISO_MODEL
+    stamps = read_stamps(dist)
+    est = ROOT / "estimators"
+    key = source_hash([est / "response_class.py", est / "response_class_train.py", ROOT / "plant"],
+                      {"sklearn": _version("scikit-learn"), "numpy": _version("numpy")})
+    stamp = [key, hashlib.sha256(out.read_bytes()).hexdigest() if out.is_file() else None]
+    if not force and stamps.get(ISO_MODEL) == stamp:
+        return out, False
+    write_iso_model(out)
+    dist.mkdir(parents=True, exist_ok=True)
+    stamps = read_stamps(dist)
+    stamps[ISO_MODEL] = [key, hashlib.sha256(out.read_bytes()).hexdigest()]
+    write_stamps(dist, stamps)
+    return out, True
 
 
 def build_container_if_changed(dist: Path, force: bool = False) -> tuple[Path, bool]:
@@ -234,6 +261,8 @@ def main(argv: list[str] | None = None) -> int:
             for p in write_docs():
                 print(f"wrote {p.relative_to(ROOT)}")
             return 0
+        model, trained = train_if_changed(args.dist, force=args.force)
+        print(f"trained {model.relative_to(ROOT)}" if trained else f"{model.name} is up to date")
         built = build(args.dist, args.names, force=args.force)
         if args.names:
             return 0
