@@ -8,7 +8,12 @@ fmu_src/suspension_fmi/ under a package name private to its build,
 ``_suspension_estimation_<version>_<8 hex of its sources' hash>`` (``private_name``), and its
 script as the module ``<that name>_<model identifier>``: a user's own modules named plant,
 estimators, harness or suspension_fmi cannot shadow them, and FMUs of two builds load side by
-side in one process. The version is pyproject.toml's unless ``--version`` says otherwise. With all three
+side in one process. The version is pyproject.toml's unless ``--version`` says otherwise.
+Before the FMUs are built, the road classifier's model (estimators/data/response_class_iso.json,
+plain data bundled with estimators/) is trained again from simulated data with fixed seeds
+(estimators.response_class_train) when its training code, the plant, scikit-learn or numpy
+changed, or the file is missing or edited; the file is also kept in the repository, and a
+retraining writes it byte for byte the same (tests/test_response_class.py). With all three
 FMUs built, it also writes the fmucontainer wiring file SuspensionSystem.csv and builds the
 container FMU SuspensionSystem.fmu from it (harness/container.py). An FMU is rebuilt only when
 its sources, the private name or the build options changed: a hash of them per FMU is kept in
@@ -177,6 +182,28 @@ def _build_fmu(script: Path, packages: list[Path], private: str, version_string:
                 del sys.modules[m]
 
 
+def train_if_changed(dist: Path, force: bool = False) -> tuple[Path, bool]:
+    """Retrain the road classifier's model (module doc) unless its stamp in ``dist`` says its
+    inputs and the file itself are unchanged. Returns (model file, retrained)."""
+    from suspension_estimation.estimators.response_class import ISO_MODEL, MODEL_DIR
+    from suspension_estimation.estimators.response_class_train import write_iso_model
+
+    out = MODEL_DIR / ISO_MODEL
+    stamps = read_stamps(dist)
+    est = ROOT / "estimators"
+    key = source_hash([est / "response_class.py", est / "response_class_train.py", ROOT / "plant"],
+                      {"sklearn": _version("scikit-learn"), "numpy": _version("numpy")})
+    stamp = [key, hashlib.sha256(out.read_bytes()).hexdigest() if out.is_file() else None]
+    if not force and stamps.get(ISO_MODEL) == stamp:
+        return out, False
+    write_iso_model(out)
+    dist.mkdir(parents=True, exist_ok=True)
+    stamps = read_stamps(dist)
+    stamps[ISO_MODEL] = [key, hashlib.sha256(out.read_bytes()).hexdigest()]
+    write_stamps(dist, stamps)
+    return out, True
+
+
 def build_container_if_changed(dist: Path, force: bool = False) -> tuple[Path, bool]:
     """``dist/SuspensionSystem.fmu`` from the three FMUs (harness/container.py), rebuilt only when
     one of them, container.py or fmu-manipulation-toolbox changed. Returns (file, rebuilt)."""
@@ -306,6 +333,8 @@ def main(argv: list[str] | None = None) -> int:
             for p in write_docs():
                 print(f"wrote {p.relative_to(ROOT)}")
             return 0
+        model, trained = train_if_changed(args.dist, force=args.force)
+        print(f"trained {model.relative_to(ROOT)}" if trained else f"{model.name} is up to date")
         built = build(args.dist, args.names, force=args.force, version_string=args.version_string)
         if args.names:
             return 0

@@ -14,6 +14,9 @@ step = 0.001
 [road]
 road_class = "C"
 seed = 3
+iri_segment = 10.0
+[estimator]
+iri_segment = 10.0
 [speed]
 value = 15.0
 [sprung_mass]
@@ -35,7 +38,7 @@ def test_every_plot_is_written_and_not_blank(dist, tmp_path):
     files = plot_result(run.result, tmp_path / "out", "p")
     names = {p.name for p in files}
     assert names == {f"p_{k}.png" for k in ("road", "accelerations", "deflection", "road_estimate", "sprung_mass",
-                                            "road_psd")}
+                                            "road_psd", "iri")}
     for png in files:
         img = imread(png)[..., :3]
         ink = np.any(img < 0.9, axis=-1)  # anything darker than near-white: axes, text, traces
