@@ -99,7 +99,7 @@ def private_name(name: str, version_string: str) -> str:
 
 
 _IMPORT = re.compile(rf"^(\s*(?:from|import)\s+){PACKAGE}(?=[.\s])", re.MULTILINE)
-_PLAIN = re.compile(r"^\s*(?:from|import)\s+(?:plant|estimators|harness|suspension_fmi)\b", re.MULTILINE)
+_PLAIN = re.compile(rf"^\s*(?:from|import)\s+(?:{'|'.join([*SOURCES, 'harness'])})\b", re.MULTILINE)
 
 
 def stage(script: Path, packages: list[Path], private: str, version_string: str, into: Path) -> Path:
@@ -142,7 +142,7 @@ def build(dist: Path, names: list[str] | None = None, force: bool = False,
         raise ValueError(f"unknown FMU name(s) {', '.join(unknown)}; known: {', '.join(FMUS)}")
     dist.mkdir(parents=True, exist_ok=True)
     stamps = read_stamps(dist)
-    version_string = version_string or project_version()
+    version_string = project_version() if version_string is None else version_string
     options = {**BUILD_OPTIONS, "pythonfmu": _version("pythonfmu")}
     built = []
     for name in FMUS:
@@ -174,7 +174,8 @@ def _build_fmu(script: Path, packages: list[Path], private: str, version_string:
     with tempfile.TemporaryDirectory(prefix="fmu-stage-") as tmp:
         staged = stage(script, packages, private, version_string, Path(tmp))
         try:
-            return Path(FmuBuilder.build_FMU(staged, dest=dist, project_files=[Path(tmp) / private], **BUILD_OPTIONS))
+            return Path(FmuBuilder.build_FMU(staged, dest=dist, project_files=[Path(tmp) / private],
+                                             **BUILD_OPTIONS))
         finally:
             # pythonfmu imports the script from the staging folder and leaves it on sys.path
             sys.path[:] = [p for p in sys.path if p != tmp]

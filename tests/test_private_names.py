@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -94,6 +95,8 @@ def test_own_modules_named_like_the_project_do_not_shadow_the_fmus(dist, tmp_pat
 def test_two_builds_of_different_versions_run_side_by_side(dist, tmp_path):
     builds = {}
     for version in ("1.0.0", "2.0.0rc1"):
+        (tmp_path / version).mkdir()
+        shutil.copy(dist / build_script.STAMPS, tmp_path / version)  # the classifier's model is current
         proc = subprocess.run([sys.executable, str(ROOT / "build.py"), "--dist", str(tmp_path / version),
                                "--version", version, "SuspensionEstimator"], capture_output=True, text=True,
                               cwd=tmp_path, timeout=120)
