@@ -193,7 +193,7 @@ class MassEstimator:
         self._d0 = 0.0
         # since-last-change least squares (weighted sums), see the module doc
         self.slow_tau = float(slow_tau)
-        self._s1 = self._spp = self._spy = self._syy = 0.0
+        self._restart_slow()
         self.n_corr = 1.0 / (2 * 1.11 * f_lp)  # s per independent residual sample
         self.guard = 5.0 / (2 * np.pi * f_lp)  # s without regression after a substituted sample
         self._guard = 0.0
@@ -201,23 +201,43 @@ class MassEstimator:
 
     def _restart_slow(self) -> None:
         self._s1 = self._spp = self._spy = self._syy = 0.0
+        self._S2pp = np.zeros((2, 2))  # the same sums for theta = [m_s, c] (estimate_damping)
+        self._S2py = np.zeros(2)
+
+    def _slow_solution(self) -> tuple[float, float, float] | None:
+        """(mass kg, 1 / information of the mass (1/(m/s^2)^2 per sample), residual sum of
+        squares N^2) of the since-change least squares, or None while it is singular."""
+        if not self.estimate_damping:
+            if self._spp <= 0.0:
+                return None
+            return (self._spy / self._spp, 1.0 / self._spp,
+                    max(self._syy - self._spy ** 2 / self._spp, 0.0))
+        A, b = self._S2pp, self._S2py
+        det = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
+        if not det > 1e-12 * max(A[0, 0] * A[1, 1], 1e-300):
+            return None
+        theta = np.linalg.solve(A, b)
+        return float(theta[0]), float(A[1, 1] / det), max(self._syy - float(theta @ b), 0.0)
 
     @property
     def mass_slow(self) -> float:
         """Least-squares mass (kg) over the data since the last detected change (the fast
-        estimate until there is enough excitation)."""
-        if self.estimate_damping or self._spp <= 0.0:
+        estimate until there is enough excitation); with ``estimate_damping`` the mass of the
+        least-squares [m_s, c]."""
+        sol = self._slow_solution()
+        if sol is None:
             return self.mass
         lo, hi = self.m_bounds
-        return min(max(self._spy / self._spp, lo), hi)
+        return min(max(sol[0], lo), hi)
 
     def mass_slow_std(self, h: float) -> float:
         """Standard error (kg) of ``mass_slow``; inf until 5 independent samples are in."""
-        if self.estimate_damping or self._spp <= 0.0 or self._s1 * h < 5 * self.n_corr:
+        sol = self._slow_solution()
+        if sol is None or self._s1 * h < 5 * self.n_corr:
             return float("inf")
-        sse = max(self._syy - self._spy ** 2 / self._spp, 0.0)
+        _, inv_info, sse = sol
         var_e = sse / self._s1  # residual variance per sample
-        return math.sqrt(var_e / self._spp * max(self.n_corr / h, 1.0))
+        return math.sqrt(var_e * inv_info * max(self.n_corr / h, 1.0))
 
     @property
     def mass(self) -> float:
@@ -267,18 +287,19 @@ class MassEstimator:
                         and (not warm or dm * dm * self._sff > self.reset_z ** 2 * self._s2)):
                     self._restart(acc_sprung, deflection, self._svf_bd)
                     fa, phi, y = self._regression()
+        if h != self._g_h:
+            self._g, self._g_h = math.exp(-h / self.slow_tau), h
+        g = self._g
+        self._s1 = g * self._s1 + 1.0
+        self._syy = g * self._syy + y * y
         if self.estimate_damping:
             self.rls.update(phi, y)
+            self._S2pp = g * self._S2pp + np.outer(phi, phi)
+            self._S2py = g * self._S2py + phi * y
         else:
             self.rls.update_scalar(fa, y)
-            if h != self._g_h:
-                self._g, self._g_h = math.exp(-h / self.slow_tau), h
-            g = self._g
-            p = fa
-            self._s1 = g * self._s1 + 1.0
-            self._spp = g * self._spp + p * p
-            self._spy = g * self._spy + p * y
-            self._syy = g * self._syy + y * y
+            self._spp = g * self._spp + fa * fa
+            self._spy = g * self._spy + fa * y
         return self.mass
 
     def _regression(self) -> tuple[float, np.ndarray | None, float]:

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
@@ -61,7 +61,7 @@ class EstimatorConfig:
     k_s: float = 20000.0  # N/m
     k_t: float = 183000.0  # N/m
     c_s: float = 2000.0  # N.s/m
-    road_estimator: int = 0  # 0 = KF, 1 = MME&KF
+    road_estimator: int = 2  # 0 = KF, 1 = MME&KF, 2 = KF with a suspension-force error state
     mass_estimator: int = 1  # 0 = off, 1 = forgetting-factor RLS
     mass_feedback: bool = True  # rebuild the road filter at the estimated mass
     forgetting_factor: float = 0.995  # RLS lambda per sample, 0.9 < lambda <= 1
@@ -79,7 +79,12 @@ class EstimatorConfig:
     # ---
     use_deflection: bool = True  # use the deflection sensor in the road filter
     mme_weight: float = 10.0  # W of MME&KF, (m/s^2)^-2
-    estimate_damping: bool = False  # RLS on [m_s, c] instead of m_s
+    # RLS on [m_s, c] instead of m_s; None = with road_estimator 2 (which does not trust c_s)
+    estimate_damping: bool | None = None
+    # intensity of the suspension-force error state of road_estimator 2 per unit speed, N^2/m
+    # (model.force_error_matrices): 1e4 N^2/s at 40 km/h, chosen on the linear plant with c_s
+    # +-30 % and k_s +-15 % against the cost on the exact vehicle (docs/robustness.md)
+    force_error_q: float = 900.0
     # Mass feedback: the road filter is rebuilt at the since-last-change least-squares mass
     # (MassEstimator.mass_slow) when it differs from the model mass by more than
     # max(mass_rebuild_tol, mass_rebuild_sigma standard errors): a significant AND relevant change.
@@ -138,7 +143,7 @@ class EstimatorConfig:
         for name, key in (("m_s_nominal", "m_s"), ("m_u", "m_u"), ("k_s", "k_s"), ("k_t", "k_t"),
                           ("c_s", "c_s")):
             msgs.append(check_range(name, float(getattr(self, name)), *VEHICLE_RANGES[key]))
-        for name, hi in (("road_estimator", 1), ("mass_estimator", 1), ("road_class", 8),
+        for name, hi in (("road_estimator", 2), ("mass_estimator", 1), ("road_class", 8),
                          ("acc_sampling", 1)):
             val = getattr(self, name)
             if isinstance(val, float) and not val.is_integer():
@@ -150,6 +155,8 @@ class EstimatorConfig:
         for name, (lo, hi) in NOISE_STD_RANGES.items():
             msgs.append(check_range(name, float(getattr(self, name)), lo, hi))
         msgs.append(check_range("mme_weight", float(self.mme_weight), 0.0, 1e12))
+        msgs.append(check_range("force_error_q", float(self.force_error_q), 0.0, 1e12,
+                                low_inclusive=False))
         msgs.append(check_range("default_class", self.default_class, 1, 8))
         msgs.append(check_range("q_class_min", self.q_class_min, 1, 8))
         return [m for m in msgs if m]
@@ -176,6 +183,11 @@ class SuspensionEstimator:
         dim_z = self.R.shape[0]
         self.acc_sampling = int(cfg.acc_sampling)
         self.n_states = N_STATES_AVG if self.acc_sampling == 1 else N_STATES
+        self._noise = cfg.model_noise
+        if cfg.road_estimator == 2:  # the suspension-force error state, appended last
+            self.n_states += 1
+            self._noise = replace(cfg.model_noise, q_f=float(cfg.force_error_q))
+        damping = cfg.road_estimator == 2 if cfg.estimate_damping is None else bool(cfg.estimate_damping)
         self._road_hold = bool(cfg.road_hold == 1 or (cfg.road_hold == -1 and self.acc_sampling == 1))
         if cfg.road_estimator == 1:
             self.kf: LinearKF = MMEKF(self.n_states, dim_z, W=cfg.mme_weight, freeze_tol=cfg.freeze_tol,
@@ -187,7 +199,7 @@ class SuspensionEstimator:
         lo, hi = VEHICLE_RANGES["m_s"][:2]
         bounds = (max(0.1 * cfg.m_s_nominal, lo), min(10.0 * cfg.m_s_nominal, hi))
         self.mass_est = (MassEstimator(cfg.m_s_nominal, cfg.k_s, cfg.c_s, cfg.forgetting_factor,
-                                       cfg.estimate_damping, m_bounds=bounds) if cfg.mass_estimator == 1 else None)
+                                       damping, m_bounds=bounds) if cfg.mass_estimator == 1 else None)
         self.classifier = RoadClassifier(gain=cfg.class_gain)
         self.model: DiscreteModel | None = None
         self._model_key: tuple | None = None
@@ -233,7 +245,7 @@ class SuspensionEstimator:
         kf.P_post = None
         kf.unfreeze()
         if self.model is None or not kf.stationary():
-            kf.P = np.diag([1e-4, 1e-4, 1e-4, 1e-4, 1e-2, 1e-1, 1e-4, 1e-4][:n]) ** 2
+            kf.P = np.diag(([1e-4, 1e-4, 1e-4, 1e-4, 1e-2, 1e-1] + [1e-4] * n)[:n]) ** 2
         self._record.clear()
         self._snaps.clear()
         # before the first model the filter is due to start at that model's fixed point
@@ -333,7 +345,7 @@ class SuspensionEstimator:
         if same_rest:
             v = m.speed  # a mass rebuild keeps the speed the buffered steps were filtered at
         self.model = DiscreteModel.build(self.cfg.vehicle(self.m_model), v, gd, h,
-                                         self.cfg.road_model, self.cfg.model_noise,
+                                         self.cfg.road_model, self._noise,
                                          self.cfg.use_deflection, self.acc_sampling,
                                          self._road_hold)
         if isinstance(self.kf, MMEKF):
