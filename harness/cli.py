@@ -60,6 +60,18 @@ def _run(args: argparse.Namespace) -> int:
 def _paper(args: argparse.Namespace) -> int:
     from .paper import PaperStudy, parse_classes
 
+    if args.study == "robust":
+        from .robust import RobustStudy
+
+        study = RobustStudy(seeds=args.seeds, duration=args.duration, warmup=args.warmup, step=args.step,
+                            classes=parse_classes(args.classes), workers=args.workers, dist=Path(args.dist),
+                            speeds=tuple(float(v) / 3.6 for v in args.speeds.split(",")),
+                            out=Path(args.out if args.out != str(RESULTS / "paper") else RESULTS / "robust"))
+        study.run(progress=not args.quiet)
+        files = study.write()
+        print(study.markdown(), end="")
+        print("\n".join(f"wrote {f}" for f in files))
+        return 1 if study.failures() else 0
     study = PaperStudy(seeds=args.seeds, duration=args.duration, warmup=args.warmup, step=args.step,
                        classes=parse_classes(args.classes), workers=args.workers, study10ms=args.study10ms,
                        class_seeds=args.class_study, dask=args.dask, scheduler=args.scheduler,
@@ -102,6 +114,9 @@ def main(argv: list[str] | None = None) -> int:
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     run.set_defaults(func=_run)
     paper = sub.add_parser("paper", help="the papers' tables (MME&KF Table 2, vehicle-mass case) through the FMUs")
+    paper.add_argument("--study", choices=("papers", "robust"), default="papers",
+                       help="papers: the papers' tables; robust: the plant off the estimators' model (harness/robust.py)")
+    paper.add_argument("--speeds", default="40,80", help="km/h of the robust study (default 40,80)")
     paper.add_argument("--seeds", type=int, default=10, help="seeds per cell (default 10)")
     paper.add_argument("--duration", type=float, default=60.0, help="s per Table-2 run (default 60)")
     paper.add_argument("--warmup", type=float, default=10.0, help="s not scored at the start (default 10)")

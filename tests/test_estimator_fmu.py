@@ -20,14 +20,15 @@ WIRES = ("acc_sprung", "acc_unsprung", "susp_deflection")
 
 
 def loop(dist, estimators: dict[str, dict], true_mass: float, stop: float, road_class: int = 3,
-         step: float = 1e-3, seed: int = 1) -> np.ndarray:
-    """Road -> plant -> several estimator instances fed by the same plant."""
+         step: float = 1e-3, seed: int = 1, plant: dict | None = None) -> np.ndarray:
+    """Road -> plant (parameters ``plant``) -> several estimator instances fed by the same plant."""
     components = {"road": dist / "ISORoad.fmu", "plant": dist / "QuarterCar.fmu",
                   **{name: dist / "SuspensionEstimator.fmu" for name in estimators}}
     connections = [("vehicle_speed", "road.vehicle_speed"), ("road.road_height", "plant.road_height")]
     for name in estimators:
         connections += [(f"plant.{w}", f"{name}.{w}") for w in WIRES] + [("vehicle_speed", f"{name}.vehicle_speed")]
-    parameters = {"road.road_class": road_class, "road.seed": seed, "plant.noise_seed": seed}
+    parameters = {"road.road_class": road_class, "road.seed": seed, "plant.noise_seed": seed,
+                  **{f"plant.{k}": v for k, v in (plant or {}).items()}}
     for name, params in estimators.items():
         parameters.update({f"{name}.{k}": v for k, v in params.items()})
     record = ["road.road_height", "plant.z_s"] + [f"{n}.{o}" for n in estimators for o in OUTPUTS]
