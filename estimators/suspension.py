@@ -30,6 +30,7 @@ from collections import deque
 from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
+from scipy.signal import butter
 
 from plant import iso8608
 from plant.quarter_car import NOISE_STD_RANGES
@@ -50,6 +51,35 @@ OUTPUTS = ("road_height_est", "road_velocity_est", "road_height_std", "z_s_est",
 
 STATUS_OK, STATUS_REJECTED, STATUS_REINIT = 0, 1, 2
 START_TERM_SPAN = 400.0  # s after a (re)start beyond which the start height is left out (g ~ 1e-8)
+
+
+class Blend:
+    """Second-order Butterworth low-pass (corner ``hz``) of a scalar, one sample per step of h s
+    (coefficients of scipy.signal.butter, direct form II transposed); ``y`` the last output."""
+
+    def __init__(self, hz: float):
+        self.hz = float(hz)
+        self._h = None
+        self.reset()
+
+    def reset(self) -> None:
+        self.s1 = self.s2 = self.y = 0.0
+
+    def copy(self) -> "Blend":
+        b = Blend.__new__(Blend)
+        b.__dict__.update(self.__dict__)
+        return b
+
+    def step(self, u: float, h: float) -> float:
+        if h != self._h:
+            b, a = butter(2, self.hz, fs=1.0 / h)
+            self._b, self._a, self._h = tuple(b.tolist()), tuple(a.tolist()), h
+        (b0, b1, b2), (_, a1, a2) = self._b, self._a
+        y = b0 * u + self.s1
+        self.s1 = b1 * u - a1 * y + self.s2
+        self.s2 = b2 * u - a2 * y
+        self.y = y
+        return y
 
 
 @dataclass
@@ -85,6 +115,12 @@ class EstimatorConfig:
     # (model.force_error_matrices): 1e4 N^2/s at 40 km/h, chosen on the linear plant with c_s
     # +-30 % and k_s +-15 % against the cost on the exact vehicle (docs/robustness.md)
     force_error_q: float = 900.0
+    # road_estimator 2: corner (Hz) below which the road comes from the exact-model KF at the
+    # identified mass and damping (the anchor) instead of the force-error filter, whose free
+    # force error leaves the body's absolute position to the double-integrated accelerometer
+    # (raw road error 38 mm against 4.4 mm on ISO C at 40 km/h; module doc)
+    blend_hz: float = 0.2
+    damping_rebuild_tol: float = 0.01  # relative change of the identified damping that rebuilds the anchor
     # Mass feedback: the road filter is rebuilt at the since-last-change least-squares mass
     # (MassEstimator.mass_slow) when it differs from the model mass by more than
     # max(mass_rebuild_tol, mass_rebuild_sigma standard errors): a significant AND relevant change.
@@ -195,6 +231,14 @@ class SuspensionEstimator:
         else:
             self.kf = LinearKF(self.n_states, dim_z, freeze_tol=cfg.freeze_tol, fast=cfg.fast_gain)
         self.kf.R = self.R
+        # road_estimator 2: the exact-model KF at the identified mass and damping runs alongside
+        # and gives the road below ``blend_hz`` (module doc); it gets the same update decisions
+        self.anchor: LinearKF | None = None
+        self.anchor_model: DiscreteModel | None = None
+        if cfg.road_estimator == 2:
+            self.anchor = LinearKF(self.n_states - 1, dim_z, freeze_tol=cfg.freeze_tol, fast=cfg.fast_gain)
+            self.anchor.R = self.R
+        self._blend = Blend(cfg.blend_hz)
         # mass estimates stay within 0.1-10 x the nominal mass and within the vehicle ranges
         lo, hi = VEHICLE_RANGES["m_s"][:2]
         bounds = (max(0.1 * cfg.m_s_nominal, lo), min(10.0 * cfg.m_s_nominal, hi))
@@ -205,6 +249,7 @@ class SuspensionEstimator:
         self._model_key: tuple | None = None
         self._class_height_std: dict[int, float] = {}  # m, ISO road-height std per class
         self.m_model = float(cfg.m_s_nominal)
+        self.c_model = float(cfg.c_s)  # damping of the anchor filter's model (identified)
         self.time = 0.0
         self.distance = 0.0
         self._rejected_time = 0.0
@@ -238,6 +283,13 @@ class SuspensionEstimator:
         n = self.n_states
         kf = self.kf
         kf.x = np.zeros(n)
+        self._blend.reset()
+        if self.anchor is not None:
+            a = self.anchor
+            a.x, a.P_post = np.zeros(n - 1), None
+            a.unfreeze()
+            if self.anchor_model is None or not a.stationary():
+                a.P = np.diag(([1e-4, 1e-4, 1e-4, 1e-4, 1e-2, 1e-1] + [1e-4] * n)[:n - 1]) ** 2
         self._t_reset = self.time  # the estimate restarts from zero: see road_height_std
         self._from_rest = bool(from_rest)
         self._buildup = None
@@ -260,7 +312,7 @@ class SuspensionEstimator:
         the vehicle is the model's and the sensors as configured. Recomputed (about 1.5 ms)
         when the class, the step or the speed (by 5 %) changes; 1 for MME&KF (not this
         filter form) or without a fixed point."""
-        kf, m = self.kf, self.model
+        kf, m = (self.kf, self.model) if self.anchor is None else (self.anchor, self.anchor_model)
         cls = self.assumed_class
         hon = self._honest
         if hon is not None and hon[0] is m and hon[1] == cls:  # the per-step path
@@ -293,7 +345,7 @@ class SuspensionEstimator:
         has a fixed point; the table is made once, at the first model, and kept through
         rebuilds (their stationary P is close)."""
         if self._buildup is None:
-            kf = self.kf
+            kf = self.kf if self.anchor is None else self.anchor
             if isinstance(kf, MMEKF) or kf.stationary_solution is None:
                 self._from_rest = False
                 return 0.0
@@ -310,9 +362,10 @@ class SuspensionEstimator:
         return float(d[j] + (u - j) * (d[j + 1] - d[j]))
 
     def _snap(self, stationary: bool | None = None) -> None:
-        kf = self.kf
+        kf, a = self.kf, self.anchor
         st = kf.stationary_now if stationary is None else stationary
-        self._snaps.append((self.time, self._steps, kf.x.copy(), kf.P.copy(), st))
+        anchor = None if a is None else (a.x.copy(), a.P.copy(), a.stationary_now)
+        self._snaps.append((self.time, self._steps, kf.x.copy(), kf.P.copy(), st, anchor, self._blend.copy()))
 
     @property
     def assumed_class(self) -> int:
@@ -323,13 +376,13 @@ class SuspensionEstimator:
     def _ensure_model(self, speed: float, h: float) -> None:
         key = self._model_key  # (h, class, speed band, mass) the model was last checked for
         cls = self.cfg.road_class or self.classifier.road_class or self.cfg.default_class
-        if key is not None and h == key[0] and cls == key[1] and self.m_model == key[4]:
+        if key is not None and h == key[0] and cls == key[1] and self.m_model == key[4] and self.c_model == key[5]:
             v = abs(speed)
             if key[2] <= (v if v > 0.1 else 0.1) <= key[3]:
                 return
         self._check_model(speed, h)
         m, tol = self.model, self.cfg.speed_rebuild_tol
-        self._model_key = (h, cls, m.speed - tol * m.speed, m.speed + tol * m.speed, self.m_model)
+        self._model_key = (h, cls, m.speed - tol * m.speed, m.speed + tol * m.speed, self.m_model, self.c_model)
 
     def _check_model(self, speed: float, h: float) -> None:
         m = self.model
@@ -338,7 +391,8 @@ class SuspensionEstimator:
         v = max(abs(speed), 0.1)
         same_rest = (m is not None and m.h == h and m.gd_n0 == gd
                      and abs(v - m.speed) <= self.cfg.speed_rebuild_tol * m.speed)
-        if same_rest and m.vehicle.m_s == self.m_model:
+        if same_rest and m.vehicle.m_s == self.m_model and (
+                self.anchor_model is None or self.anchor_model.vehicle.c_s == self.c_model):
             return
         if not same_rest:
             self._epoch_step = self._steps  # steps before this one used another model
@@ -355,16 +409,25 @@ class SuspensionEstimator:
         else:
             self.kf.set_model(self.model.Phi, self.model.Q, self.model.H, self.R)
         self.kf.stationary()
+        if self.anchor is not None:
+            am = self.anchor_model = DiscreteModel.build(
+                replace(self.cfg.vehicle(self.m_model), c_s=self.c_model), v, gd, h, self.cfg.road_model,
+                self.cfg.model_noise, self.cfg.use_deflection, self.acc_sampling, self._road_hold)
+            self.anchor.set_model(am.Phi, am.Q, am.H, self.R)
+            self.anchor.stationary()
 
     def _filter(self, z: np.ndarray, rows) -> None:
         """Replay one recorded step: rows None = full update, else the rows used (may be none)."""
-        kf = self.kf
-        if rows is None:
-            kf.step(z)
-        else:
-            kf.predict_only()
-            if len(rows):
-                kf.update_rows(z, rows)
+        for kf in (self.kf, self.anchor):
+            if kf is None:
+                continue
+            if rows is None:
+                kf.step(z)
+            else:
+                kf.predict_only()
+                if len(rows):
+                    kf.update_rows(z, rows)
+        self._blend_step()
 
     def _refilter(self) -> bool:
         """Re-run the road filter (already rebuilt at the new mass) from the latest snapshot
@@ -384,17 +447,25 @@ class SuspensionEstimator:
                 break
         if snap is None or self._epoch_step > snap[1] + 1:
             return False
-        _, k0, x0, P0, stationary = snap
-        kf = self.kf
-        kf.x, kf.P, kf.P_post = x0.copy(), P0.copy(), None
-        kf.unfreeze()
-        if stationary:  # at the old model's fixed point: start at the new model's
-            kf.stationary()
+        _, k0, x0, P0, stationary, anchor, blend = snap
+        for kf, saved in ((self.kf, (x0, P0, stationary)), (self.anchor, anchor)):
+            if kf is None or saved is None:
+                continue
+            x0, P0, stationary = saved
+            kf.x, kf.P, kf.P_post = x0.copy(), P0.copy(), None
+            kf.unfreeze()
+            if stationary:  # at the old model's fixed point: start at the new model's
+                kf.stationary()
+        self._blend = blend.copy()
         for k, z, rows in self._record:
             if k > k0:
                 self._filter(z, rows)
         self.refilters += 1
         return True
+
+    def _blend_step(self) -> None:
+        if self.anchor is not None:
+            self._blend.step(float(self.anchor.x[IZR] - self.kf.x[IZR]), self._h)
 
     def _episode_closed(self) -> bool:
         return (self._confirmed_for >= self.cfg.refilter_confirm
@@ -466,6 +537,7 @@ class SuspensionEstimator:
                 else (float(acc_sprung), float(acc_unsprung)))
         z = np.array(vals)
         self.time += h
+        self._h = h
         self.distance += abs(speed) * h
         self._steps += 1
         self._ensure_model(speed, h)
@@ -498,6 +570,14 @@ class SuspensionEstimator:
             for i in range(len(ot)):
                 ot[i] = ot[i] + h if outliers and not valid[i] else 0.0
         rows = None if valid is None or valid.all() else np.flatnonzero(valid)
+        a = self.anchor
+        if a is not None:  # the same decisions as the road filter's
+            if rows is None:
+                a.step(z)
+            else:
+                a.predict_only()
+                if len(rows):
+                    a.update_rows(z, rows)
         if valid is None or valid.all():
             valid = (True, True, True)
         self._rejected_time = self._rejected_time + h if rejected_all else 0.0
@@ -509,9 +589,12 @@ class SuspensionEstimator:
             self.reset_state()
             self._rejected_time = 0.0
             status = STATUS_REINIT
-        if not math.isfinite(sum(kf.x.tolist()) + (0.0 if kf.frozen else float(kf.P.sum()))):
+        if not math.isfinite(sum(kf.x.tolist()) + (0.0 if kf.frozen else float(kf.P.sum()))
+                            + (0.0 if a is None else sum(a.x.tolist()) + (0.0 if a.frozen else float(a.P.sum())))):
             self.reset_state()
             status = STATUS_REINIT
+        self._h = h
+        self._blend_step()
         if cfg.refilter_span > 0 and status != STATUS_REINIT:
             self._record.append((self._steps, z, rows))
 
@@ -549,9 +632,21 @@ class SuspensionEstimator:
                         self._ensure_model(speed, h)  # rebuild now and re-filter the change
                         if not self._episode_closed():
                             self._refilter()
+                c = me.damping
+                if (self.anchor is not None and abs(c - self.c_model) > cfg.damping_rebuild_tol * self.c_model
+                        and self.time - self._last_rebuild >= cfg.mass_rebuild_interval):
+                    self.c_model = c  # the anchor filter at the identified damping
+                    self._last_rebuild = self.time
+                    self._ensure_model(speed, h)
+                    if cfg.refilter_span > 0 and not self._episode_closed():
+                        self._refilter()
         if cfg.refilter_span > 0:
             self._keep_snapshots()
         x = kf.x.tolist()
+        low = self._blend.y  # m, the anchor's road below blend_hz minus the road filter's
+        x[IZR] += low
+        x[IZS] += low
+        x[IZU] += low
         if status != STATUS_REINIT:
             self.classifier.update(self.distance, x[IZR], speed)
         out = self.outputs
@@ -559,7 +654,7 @@ class SuspensionEstimator:
         # started on (or stood on at a re-initialisation), z_0, adds -z_0 g(t) to the raw error
         # (model.start_level_std), z_0 ~ the road-height std of the assumed class. The KF
         # estimates z_0 from its own road estimate (start_offset.py) and adds g(t) z_0^.
-        var = max(float(kf.P[IZR, IZR]), 0.0) * self._honest_ratio()
+        var = max(float((kf if self.anchor is None else self.anchor).P[IZR, IZR]), 0.0) * self._honest_ratio()
         t_rel = self.time - self._t_reset
         if self._from_rest:
             var *= 1.0 - self._deficit(t_rel, h)
