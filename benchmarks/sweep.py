@@ -37,14 +37,14 @@ from pathlib import Path  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
-from harness import paper  # noqa: E402
+from harness.studies import runner  # noqa: E402
 from harness.sweep import Sweep, close_worker, execute, failed_rows, local_cluster, run_task  # noqa: E402
 
 
 def _tasks(dist: Path, n: int, duration: float, first_seed: int = 1) -> list:
-    points = [{"road_class": 3, "speed": paper.SPEED, "mass": paper.NOMINAL_MASS, "seed": first_seed + i}
+    points = [{"road_class": 3, "speed": runner.SPEED, "mass": runner.NOMINAL_MASS, "seed": first_seed + i}
               for i in range(n)]
-    sweep = Sweep(name="bench", points=points, estimators=paper.ESTIMATORS, duration=duration, step=1e-3,
+    sweep = Sweep(name="bench", points=points, estimators=runner.ESTIMATORS, duration=duration, step=1e-3,
                   warmup=min(2.0, duration / 2))
     return sweep.tasks(dist)
 
@@ -71,7 +71,7 @@ def main() -> dict:
     tasks = _tasks(args.dist, args.runs, args.duration)
     warm = [replace(t, spec=replace(t.spec, duration=0.1, warmup=0.0)) for t in _tasks(args.dist, 1, 0.1)]
     res: dict = {"runs": args.runs, "duration_s": args.duration, "workers": args.workers,
-                 "estimators": [e.instance for e in paper.ESTIMATORS], "load_avg_start": os.getloadavg()}
+                 "estimators": [e.instance for e in runner.ESTIMATORS], "load_avg_start": os.getloadavg()}
 
     print(f"serial: {args.runs} runs of {args.duration:g} s in this process ...", flush=True)
     execute(warm, run_task, lambda t, r: None)
@@ -109,7 +109,7 @@ def main() -> dict:
         cluster.close()
     per: dict = {}
     for r in rows:
-        if r["ok"] and r["estimator"] == paper.ESTIMATORS[0].instance:
+        if r["ok"] and r["estimator"] == runner.ESTIMATORS[0].instance:
             per.setdefault(r["worker"], {})[r["worker_run"]] = r["worker_rss_mb"]
     res["memory"] = {"wall_s": mem_s, "per_worker": {}}
     for w, by_run in sorted(per.items()):
@@ -142,13 +142,13 @@ def main() -> dict:
 def _median_step(rows: list[dict]) -> float:
     import numpy as np
 
-    return float(np.median([r["us_per_step"] for r in rows if r["ok"] and r["estimator"] == paper.ESTIMATORS[0].instance]))
+    return float(np.median([r["us_per_step"] for r in rows if r["ok"] and r["estimator"] == runner.ESTIMATORS[0].instance]))
 
 
 def _count(rows: list[dict]) -> dict:
     out: dict = {}
     for r in rows:
-        if r["estimator"] == paper.ESTIMATORS[0].instance:
+        if r["estimator"] == runner.ESTIMATORS[0].instance:
             out[str(r["worker"])] = out.get(str(r["worker"]), 0) + 1
     return out
 

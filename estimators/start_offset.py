@@ -30,6 +30,14 @@ against a reported 5.75 mm). The samples are kept, so that a change of the assum
 (sigma_0) re-runs the filter over them with the new prior (at most 8000 samples, 320 kB: the
 estimator drops the filter 400 s after the start, where g ~ 1e-8).
 
+A re-run moves the estimate of z_0 at once (by 9-15 mm at the first identification or a class
+change on a measured road), and the road estimate with it. So the reported ``b`` is the
+filter's estimate plus a blend term that starts at the difference (old reported - re-run) and
+decays as exp(-t / BLEND_TIME): ``b`` stays continuous, and from one sample to the next (50 ms)
+the blend moves by at most 1 % of the change (0.15 mm for a 15 mm change; the tolerance is 0.5
+mm per sample up to a 50 mm change). While it lasts the blend adds (g blend)^2 to
+``start_variance``.
+
 ``SuspensionEstimator`` shifts body, wheel and road positions by g(t) b^ (the deflections are
 unchanged). The velocities are not shifted: the rate |g'(t)| b^ <= 2 zeta_ref w_ref b^, 0.09 b^
 per s (3 mm/s for b^ = 30 mm, the ISO D height std). A re-filter after a mass rebuild changes
@@ -42,6 +50,7 @@ import math
 from array import array
 
 SAMPLE_INTERVAL = 0.05  # s between the samples of x the filter takes
+BLEND_TIME = 5.0  # s, time constant over which a re-run's change of b^ is blended in
 OBS_VAR = 1e-8  # m^2, a (0.1 mm)^2 floor under the observation of x
 
 
@@ -56,6 +65,7 @@ class StartOffset:
         self.tau_d = 1.0 / (2.0 * math.pi * f_ref)
         self.d0_var = float(d0_var)
         self.samples = array("d")  # (t, x, V, s^2, g) after each other: 40 bytes a sample
+        self.blend = 0.0  # m, what is left of a re-run's change of b^ (see the module doc)
         self._restart(float(sigma0))
 
     def _restart(self, sigma0: float) -> None:
@@ -68,13 +78,13 @@ class StartOffset:
 
     @property
     def b(self) -> float:
-        """Estimate of z_0 (m)."""
-        return self.x[2]
+        """Estimate of z_0 (m) as reported: the filter's x[2] plus the blend of a re-run."""
+        return self.x[2] + self.blend
 
     def start_variance(self, g: float) -> float:
-        """g^2 P_bb - 2 g P_db (m^2): what the start height adds to the variance of the corrected
-        road estimate x + g b^ at a time where the reference's step response is g."""
-        return g * g * self.P[2][2] - 2.0 * g * self.P[1][2]
+        """g^2 (P_bb + blend^2) - 2 g P_db (m^2): what the start height adds to the variance of the
+        corrected road estimate x + g b^ at a time where the reference's step response is g."""
+        return g * g * (self.P[2][2] + self.blend * self.blend) - 2.0 * g * self.P[1][2]
 
     def due(self, t: float, h: float) -> bool:
         """True when a sample of x is due at t (s) with the step h (s)."""
@@ -84,14 +94,17 @@ class StartOffset:
         """Take the sample x (m) of the road estimate at t (s) since the start, at speed (m/s),
         with the filter's raw-error variance s2 (m^2) then, the step response g and the road
         height std sigma0 (m) of the assumed class; a new sigma0 re-runs over the samples."""
+        if self.blend != 0.0:
+            self.blend *= math.exp(-(t - self._t) / BLEND_TIME)
         self.samples.extend((t, x, speed, s2, g))
         if sigma0 != self.sigma0:
+            before = self.b
             self._restart(sigma0)
             v = self.samples
-            for i in range(0, len(v), 5):
+            for i in range(0, len(v) - 5, 5):
                 self._update(v[i], v[i + 1], v[i + 2], v[i + 3], v[i + 4])
-        else:
-            self._update(t, x, speed, s2, g)
+            self.blend = before - self.x[2]  # continuous across the re-run ...
+        self._update(t, x, speed, s2, g)  # ... and this sample's update as usual
 
     def _update(self, t: float, y: float, speed: float, s2: float, g: float) -> None:
         dt = t - self._t

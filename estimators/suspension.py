@@ -33,7 +33,9 @@ import numpy as np
 from scipy.signal import butter
 
 from plant import iso8608
+from plant.iri import IRIMeter
 from plant.quarter_car import NOISE_STD_RANGES
+from plant.step_size import same_step
 from plant.vehicle import Vehicle, VEHICLE_RANGES, check_range
 
 from .kalman import LinearKF, MMEKF, error_buildup
@@ -47,7 +49,7 @@ from .steady_state import raw_error_variance
 
 OUTPUTS = ("road_height_est", "road_velocity_est", "road_height_std", "z_s_est", "v_s_est",
            "z_u_est", "v_u_est", "susp_deflection_est", "tire_deflection_est", "sprung_mass_est",
-           "road_class_est", "nis", "status")
+           "road_class_est", "nis", "status", "iri_est")
 
 STATUS_OK, STATUS_REJECTED, STATUS_REINIT = 0, 1, 2
 START_TERM_SPAN = 400.0  # s after a (re)start beyond which the start height is left out (g ~ 1e-8)
@@ -174,6 +176,7 @@ class EstimatorConfig:
     refilter_lookback: float = 0.1  # s before the RLS change detection (it comes up to 85 ms late)
     refilter_confirm: float = 0.5  # s of agreement of data and model mass that close an episode
     snapshot_interval: float = 0.02  # s between filter snapshots
+    iri_segment: float = 100.0  # m, segments of the IRI of the road estimate (plant/iri.py)
 
     def vehicle(self, m_s: float | None = None) -> Vehicle:
         return Vehicle(m_s=self.m_s_nominal if m_s is None else m_s, m_u=self.m_u, k_s=self.k_s,
@@ -252,6 +255,7 @@ class SuspensionEstimator:
         self.mass_est = (MassEstimator(cfg.m_s_nominal, cfg.k_s, cfg.c_s, cfg.forgetting_factor,
                                        damping, m_bounds=bounds) if cfg.mass_estimator == 1 else None)
         self.classifier = RoadClassifier(gain=cfg.class_gain)
+        self.iri = IRIMeter(cfg.iri_segment, start=0.0)  # raises a ValueError naming iri_segment
         self.model: DiscreteModel | None = None
         self._model_key: tuple | None = None
         self._class_height_std: dict[int, float] = {}  # m, ISO road-height std per class
@@ -275,6 +279,8 @@ class SuspensionEstimator:
         self._confirmed_for = 0.0  # s the model mass has agreed with the data without a break
         self._resets_seen = 0
         self.refilters = 0
+        self.model_builds = 0  # discretisations of the road filter's model (each costs ~1-3 ms)
+        self.mass_rebuilds = 0  # changes of the model mass by the mass feedback
         # deficit of the error variance of a start from rest (see road_height_std): made at the
         # first model, None when the estimate has not (re)started from rest
         self._buildup: tuple[float, np.ndarray] | None = None
@@ -407,6 +413,7 @@ class SuspensionEstimator:
             self._epoch_step = self._steps  # steps before this one used another model
         if same_rest:
             v = m.speed  # a mass rebuild keeps the speed the buffered steps were filtered at
+        self.model_builds += 1
         self.model = DiscreteModel.build(self.cfg.vehicle(self.m_model), v, gd, h,
                                          self.cfg.road_model, self._noise,
                                          self.cfg.use_deflection, self.acc_sampling,
@@ -571,10 +578,13 @@ class SuspensionEstimator:
     def step(self, acc_sprung: float, acc_unsprung: float, deflection: float, speed: float,
              h: float) -> dict[str, float]:
         """Process one sample: accelerations (m/s^2), deflection z_s - z_u (m), speed (m/s),
-        step h (s) since the previous sample. Returns the contract's outputs (SI units)."""
+        step h (s) since the previous sample. Returns the contract's outputs (SI units). A step
+        that differs from the model's by rounding only is the model's step (plant.step_size)."""
         cfg = self.cfg
         if not (math.isfinite(h) and h > 0):
             raise ValueError(f"step size h = {h!r} must be finite and > 0")
+        if self.model is not None:
+            h = same_step(h, self.model.h)
         if not math.isfinite(speed):
             speed = self.model.speed if self.model is not None else 0.0
         status = STATUS_OK
@@ -674,6 +684,7 @@ class SuspensionEstimator:
                 if not agree and self.time - self._last_rebuild >= cfg.mass_rebuild_interval:
                     self.m_model = m
                     self._last_rebuild = self.time
+                    self.mass_rebuilds += 1
                     if cfg.refilter_span > 0:
                         self._ensure_model(speed, h)  # rebuild now and re-filter the change
                         if not self._episode_closed():
@@ -744,4 +755,5 @@ class SuspensionEstimator:
         out["road_class_est"] = int(self.classifier.road_class)
         out["nis"] = float(kf.nis)  # of the last update (kept through rejected steps)
         out["status"] = status
+        out["iri_est"] = self.iri.update(self.distance, out["road_height_est"])
         return out

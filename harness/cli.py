@@ -3,13 +3,14 @@
 ``python -m harness run <scenario> [--out DIR] [--no-plots] [--dist DIR]``: prints a summary;
 writes ``<out>/<scenario>.csv`` and PNG plots (default ``results/<scenario>/``).
 
-``python -m harness paper [--seeds N] [--duration S] [--warmup S] [--step S] [--classes B,C,D]
-[--workers N] [--out DIR] [--study10ms] [--dask] [--scheduler ADDRESS] [--dist DIR]``: the papers'
-studies through the FMUs (harness/paper.py; with ``--dask`` or ``--scheduler`` on Dask through the
-sweep runner, harness/sweep.py, each worker reusing its FMU instances); prints the tables and
-targets as markdown, writes ``<out>/paper_tables.md``, ``<out>/paper_runs.json`` and PNG plots
-(default ``results/paper/``). Exits 1 if any run failed (after reporting it and finishing the
-others).
+``python -m harness paper [--study NAME ...] [--seeds N] [--duration S] [--warmup S] [--step S]
+[--classes B,C,D] [--workers N] [--out DIR] [--study10ms] [--class-study N] [--dask]
+[--scheduler ADDRESS] [--dist DIR]``: the papers' studies through the FMUs (one module each in
+harness/studies/, named in its registry; without ``--study``: table2 and mass; with ``--dask`` or
+``--scheduler`` on Dask through the sweep runner, harness/sweep.py, each worker reusing its FMU
+instances); prints the tables and targets as markdown, writes ``<out>/paper_tables.md``,
+``<out>/paper_runs.json`` and PNG plots (default ``results/paper/``). Exits 1 if any run failed
+(after reporting it and finishing the others).
 
 ``python -m harness sweep <file> [--workers N] [--scheduler ADDRESS] [--out DIR] [--dist DIR]
 [--skip-failed] [--limit N]``: a grid or Monte Carlo study on Dask (harness/sweep.py); one row of
@@ -28,6 +29,7 @@ from pathlib import Path
 from .cosim import SimulationError
 from .runner import DIST, RESULTS, run_scenario, summary
 from .scenario import ScenarioError, load_scenario
+from .studies import STUDIES
 from .sweep import SweepError
 
 
@@ -58,24 +60,13 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _paper(args: argparse.Namespace) -> int:
-    from .paper import PaperStudy, parse_classes
+    from .studies.runner import parse_classes
+    from .studies.suite import PaperStudy
 
-    if args.study == "robust":
-        from .robust import RobustStudy
-
-        study = RobustStudy(seeds=args.seeds, duration=args.duration, warmup=args.warmup, step=args.step,
-                            classes=parse_classes(args.classes), workers=args.workers, dist=Path(args.dist),
-                            speeds=tuple(float(v) / 3.6 for v in args.speeds.split(",")),
-                            out=Path(args.out if args.out != str(RESULTS / "paper") else RESULTS / "robust"))
-        study.run(progress=not args.quiet)
-        files = study.write()
-        print(study.markdown(), end="")
-        print("\n".join(f"wrote {f}" for f in files))
-        return 1 if study.failures() else 0
     study = PaperStudy(seeds=args.seeds, duration=args.duration, warmup=args.warmup, step=args.step,
                        classes=parse_classes(args.classes), workers=args.workers, study10ms=args.study10ms,
                        class_seeds=args.class_study, dask=args.dask, scheduler=args.scheduler,
-                       dist=Path(args.dist), out=Path(args.out))
+                       dist=Path(args.dist), out=Path(args.out), studies=tuple(args.study or ()))
     study.run(progress=not args.quiet)
     files = study.write()
     print(study.markdown(), end="")
@@ -114,9 +105,9 @@ def main(argv: list[str] | None = None) -> int:
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     run.set_defaults(func=_run)
     paper = sub.add_parser("paper", help="the papers' tables (MME&KF Table 2, vehicle-mass case) through the FMUs")
-    paper.add_argument("--study", choices=("papers", "robust"), default="papers",
-                       help="papers: the papers' tables; robust: the plant off the estimators' model (harness/robust.py)")
-    paper.add_argument("--speeds", default="40,80", help="km/h of the robust study (default 40,80)")
+    paper.add_argument("--study", action="append", metavar="NAME",
+                       help=f"run this study (repeatable; one of {', '.join(STUDIES)}; default: table2 and mass, "
+                            "plus those --study10ms and --class-study add)")
     paper.add_argument("--seeds", type=int, default=10, help="seeds per cell (default 10)")
     paper.add_argument("--duration", type=float, default=60.0, help="s per Table-2 run (default 60)")
     paper.add_argument("--warmup", type=float, default=10.0, help="s not scored at the start (default 10)")

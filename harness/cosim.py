@@ -642,6 +642,8 @@ def read_csv(path: Path | str) -> np.ndarray:
     with open(path) as f:
         names = [n.strip().strip('"') for n in f.readline().rstrip("\n").split(",")]
     data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    if data.shape[0] == 0:
+        raise ValueError(f"{path} holds a header and no rows (a run refused at initialization)")
     out = np.empty(data.shape[0], dtype=[(n, np.float64) for n in names])
     for j, n in enumerate(names):
         out[n] = data[:, j]

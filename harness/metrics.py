@@ -82,3 +82,16 @@ def steady_mass_error_pct(t: np.ndarray, est: np.ndarray, truth: float, t0: floa
     t = np.asarray(t, float)
     sel = (t >= t0) & (t < t1)
     return float(np.mean(np.abs(mass_error_pct(np.asarray(est)[sel], truth))))
+
+
+def iri_segments(distance: np.ndarray, iri_true: np.ndarray,
+                 iri_est: np.ndarray) -> list[tuple[float, float, float, float]]:
+    """Per completed IRI segment, from the records of ISORoad.iri and SuspensionEstimator.iri_est
+    (m/km, each the IRI of the last completed segment, 0 before the first): rows (distance m at
+    which the segment was reported, IRI true, IRI estimated, error % = 100 (est / true - 1)).
+    A segment is taken where the true IRI changes; the estimate completes the same segment in the
+    same step (same distance grid)."""
+    d, tr, es = (np.asarray(x, float) for x in (distance, iri_true, iri_est))
+    idx = np.flatnonzero(np.diff(tr) != 0) + 1
+    return [(float(d[i]), float(tr[i]), float(es[i]), float(100 * (es[i] / tr[i] - 1))) for i in idx
+            if tr[i] > 0]

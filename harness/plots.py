@@ -18,10 +18,10 @@ def _figure(title: str, rows: int = 1):
     return fig, axes[:, 0]
 
 
-def _save(fig, path: Path) -> Path:
+def _save(fig, path: Path, xlabel: str = "time (s)") -> Path:
     import matplotlib.pyplot as plt
 
-    fig.axes[-1].set_xlabel("time (s)")
+    fig.axes[-1].set_xlabel(xlabel)
     for ax in fig.axes:
         ax.grid(True, alpha=0.3)
         if ax.get_legend_handles_labels()[0]:
@@ -86,4 +86,26 @@ def plot_result(result: np.ndarray, out: Path, name: str) -> list[Path]:
         ax.plot(t, result["SuspensionEstimator.sprung_mass_est"], lw=0.8, ls="--", label="estimate")
         ax.set_ylabel("sprung mass (kg)")
         files.append(_save(fig, out / f"{name}_sprung_mass.png"))
+    if has("SuspensionEstimator.iri_est", "ISORoad.iri", "ISORoad.distance"):
+        from .metrics import iri_segments
+
+        rows = iri_segments(result["ISORoad.distance"], result["ISORoad.iri"], result["SuspensionEstimator.iri_est"])
+        if rows:
+            files.append(plot_iri(rows, out / f"{name}_iri.png", name))
     return files
+
+
+def plot_iri(rows: list[tuple[float, float, float, float]], path: Path, name: str) -> Path:
+    """Bars of the true and estimated IRI per segment (rows of ``metrics.iri_segments``)."""
+    d = np.array([r[0] for r in rows])
+    x = np.arange(len(rows))
+    fig, (a1, a2) = _figure(f"{name}: IRI per segment, true vs estimated", 2)
+    a1.bar(x - 0.2, [r[1] for r in rows], 0.4, label="true (ISORoad.iri)")
+    a1.bar(x + 0.2, [r[2] for r in rows], 0.4, label="estimated (iri_est)")
+    a1.set_ylabel("IRI (m/km)")
+    a2.bar(x, [r[3] for r in rows], 0.6, color="C3", label="error")
+    a2.axhline(3, color="k", lw=0.6, ls="--")
+    a2.axhline(-3, color="k", lw=0.6, ls="--")
+    a2.set_ylabel("error (%)")
+    a2.set_xticks(x, [f"{v:.0f}" for v in d])
+    return _save(fig, path, "segment reported at distance (m)")

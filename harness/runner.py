@@ -19,12 +19,12 @@ RESULTS = ROOT / "results"
 
 # recorded by default (those the FMU has); a scenario's [output] record adds to these
 RECORD = {
-    "ISORoad": ["road_height", "road_velocity", "distance", "vehicle_speed"],
+    "ISORoad": ["road_height", "road_velocity", "distance", "vehicle_speed", "iri"],
     "QuarterCar": ["road_height", "sprung_mass", "acc_sprung", "acc_unsprung", "susp_deflection",
                    "acc_sprung_true", "acc_unsprung_true", "z_s", "v_s", "z_u", "v_u", "tire_deflection",
                    "tire_force"],
     "SuspensionEstimator": ["road_height_est", "road_velocity_est", "road_height_std", "sprung_mass_est",
-                            "road_class_est", "susp_deflection_est", "nis", "status"],
+                            "road_class_est", "susp_deflection_est", "nis", "status", "iri_est"],
 }
 _TABLE = {"ISORoad": "road", "QuarterCar": "plant", "SuspensionEstimator": "estimator"}
 
@@ -99,7 +99,7 @@ def run_scenario(scenario: Scenario, dist: Path = DIST, out: Path | None = None,
         with CoSimulation(system, parameters=parameters, inputs=inputs, record=record) as sim:
             result = sim.run(scenario.duration, scenario.step, progress=progress)
     except SimulationError as e:
-        if csv is not None and e.result is not None:
+        if csv is not None and e.result is not None and len(e.result):  # no header-only CSV
             write_csv(csv, e.result)
         raise
     if csv is not None:
@@ -136,6 +136,11 @@ def summary(run: Run) -> list[str]:
                          + (f"; within 2 sigma {100 * s['coverage_2sigma']:.0f} %" if "coverage_2sigma" in s else ""))
         except Exception as e:  # noqa: BLE001 - a failing score must not hide the run
             lines.append(f"  road estimate: no score ({type(e).__name__}: {e})")
+        if "SuspensionEstimator.iri_est" in r.dtype.names:
+            rows = metrics.iri_segments(r["ISORoad.distance"], r["ISORoad.iri"], r["SuspensionEstimator.iri_est"])
+            if rows:
+                lines.append("  IRI per segment (m/km, true / estimated / error): " + "; ".join(
+                    f"{d:.0f} m {t:.2f} / {e:.2f} / {p:+.1f} %" for d, t, e, p in rows))
         err = metrics.mass_error_pct(r["SuspensionEstimator.sprung_mass_est"], r["QuarterCar.sprung_mass"])
         tail = t >= t[0] + 0.75 * (t[-1] - t[0])
         lines.append(f"  sprung mass: estimate {r['SuspensionEstimator.sprung_mass_est'][-1]:.1f} kg at the end "

@@ -4,7 +4,8 @@ A scenario is looked up by name in ``harness/scenarios/`` (``default`` -> ``defa
 given as a path. Keys (units in brackets; everything but ``duration`` and ``step`` optional):
 
     description = "..."
-    duration = 20.0            # [s]
+    duration = 20.0            # [s], or "profile": drive the whole [road] profile_file at the
+                               # [speed] (the last whole step before its end)
     step = 0.001               # [s] communication step
     system = "auto"            # "auto" (with the estimator when its FMU exists), "road_plant",
                                # "road_plant_estimator"
@@ -12,7 +13,8 @@ given as a path. Keys (units in brackets; everything but ``duration`` and ``step
     [road]                     # ISORoad parameters by name
     road_class = "C"           # "A".."H" or 1..8
     seed = 1                   # also psd_n0 [m3], waviness [1], n_min, n_max [1/m],
-    profile_file = ""          # a path relative to the scenario file
+    profile_file = ""          # a path relative to the scenario file; also profile_units,
+                               # profile_lateral_offset, profile_end (see the ISORoad contract)
 
     [speed]                    # vehicle_speed [m/s]: value = 11.1111, or breakpoints
     time = [0.0, 10.0]         # [s], increasing
@@ -175,6 +177,35 @@ def _params(where: str, key: str, data: dict) -> dict:
     return dict(data)
 
 
+def _whole_profile_duration(where: str, road: dict, speed: Profile, step: float) -> float:
+    """The duration (s, whole steps) that drives the road's profile_file to its end: the road
+    advances by speed(t_k) * step in step k, and the last step must not pass the end."""
+    from plant.profile_formats import ProfileError, read_profile
+
+    if not road.get("profile_file"):
+        raise _err(where, "'duration' = \"profile\" needs 'road.profile_file'")
+    try:
+        dist, _ = read_profile(road["profile_file"], road.get("profile_units", ""),
+                               road.get("profile_lateral_offset", 0.0))
+    except ProfileError as e:
+        raise _err(where, str(e)) from None
+    length = float(dist[-1] - dist[0])
+    travelled, n, chunk = 0.0, 0, 4096
+    while True:
+        v = np.abs(np.broadcast_to(speed(step * np.arange(n, n + chunk)), (chunk,)))
+        d = travelled + step * np.cumsum(v)
+        over = np.flatnonzero(d > length * (1 + 1e-12))
+        if len(over):
+            n += int(over[0])
+            break
+        travelled, n = float(d[-1]), n + chunk
+        if n * step > 1e7:
+            raise _err(where, f"the speed never covers the {length:g} m of the profile")
+    if n == 0:
+        raise _err(where, f"the profile ({length:g} m) is shorter than one step at the start speed")
+    return n * step
+
+
 def find_scenario(name_or_path: str | Path) -> Path:
     """The scenario file for a name in ``harness/scenarios/`` or a path."""
     p = Path(name_or_path)
@@ -205,8 +236,16 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     for key in ("duration", "step"):
         if key not in data:
             raise _err(where, f"'{key}' is missing")
-    duration = _number(where, "duration", data["duration"], positive=True)
     step = _number(where, "step", data["step"], positive=True)
+    speed = _profile(where, "speed", data.get("speed"), 11.1111, "linear")
+    road = _params(where, "road", _table(where, data, "road"))
+    if road.get("profile_file"):
+        pf = Path(road["profile_file"])
+        road["profile_file"] = str(pf if pf.is_absolute() else (path.parent / pf).resolve())
+    if data["duration"] == "profile":
+        duration = _whole_profile_duration(where, road, speed, step)
+    else:
+        duration = _number(where, "duration", data["duration"], positive=True)
     if step > duration:
         raise _err(where, f"'step' = {step} s is longer than 'duration' = {duration} s")
     n = round(duration / step)
@@ -219,16 +258,12 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     if not isinstance(description, str):
         raise _err(where, "'description' must be a string")
 
-    road = _params(where, "road", _table(where, data, "road"))
     if "road_class" in road:
         c = road["road_class"]
         if isinstance(c, str):
             if len(c) != 1 or c.upper() not in _CLASSES:
                 raise _err(where, f"'road.road_class' must be \"A\"..\"H\" or 1..8, got {c!r}")
             road["road_class"] = _CLASSES.index(c.upper()) + 1
-    if road.get("profile_file"):
-        pf = Path(road["profile_file"])
-        road["profile_file"] = str(pf if pf.is_absolute() else (path.parent / pf).resolve())
 
     noise = _table(where, data, "noise")
     if unknown := set(noise) - set(_NOISE):
@@ -252,7 +287,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
 
     return Scenario(
         name=path.stem, path=path, description=description, duration=duration, step=step, system=system,
-        speed=_profile(where, "speed", data.get("speed"), 11.1111, "linear"),
+        speed=speed,
         sprung_mass=_profile(where, "sprung_mass", data.get("sprung_mass"), 410.0, "step"),
         road=road, plant=_params(where, "plant", _table(where, data, "plant")),
         estimator=_params(where, "estimator", _table(where, data, "estimator")),

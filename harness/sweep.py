@@ -3,7 +3,7 @@
 ``python -m harness sweep <file>`` runs every point of a sweep (ISO class x speed x true sprung
 mass x seed, from a grid and/or seeded Monte Carlo draws) with every estimator configuration of
 the file, and streams one row of metrics per run of an estimator to Parquet. Each point is one
-co-simulation, ``harness.paper``'s table-2 run: one road and one plant feeding one
+co-simulation, the table-2 run of ``harness.studies.runner``: one road and one plant feeding one
 SuspensionEstimator instance per configuration, so the estimators are compared on the very same
 signals and the road and plant are paid once (the numbers are those of ``python -m harness
 paper``: it is the same function).
@@ -64,14 +64,14 @@ Columns: ``key``, ``run`` (hash of the point; the rows of one co-simulation shar
 [kg], ``seed``, ``draw`` (Monte Carlo index or -1), ``duration``, ``step``, ``warmup`` [s],
 ``nominal_mass`` [kg], ``acc_sampling``, ``wall_s`` [s] and ``us_per_step`` [µs] of the
 co-simulation, ``worker`` (process id), ``worker_run`` (runs done by that process so far),
-``worker_rss_mb`` [MiB, after the run], then the metrics of ``harness.paper``'s table-2 run
+``worker_rss_mb`` [MiB, after the run], then the metrics of the table-2 run
 (``err_std_raw_pct``, ``err_std_hp_pct``, ``gain_hp``, ``rmse_raw_mm``, ``rmse_hp_mm``,
 ``coverage_2sigma``, ``mass_err_end_pct``, ``mass_err_mean_pct``, ``class_first_s``,
 ``class_right``, ``status_nonzero``; see ``harness.metrics``).
 
 Execution follows FMPy's parameter-variation example: each worker process extracts the FMUs
 once (into its Dask worker directory, which Dask removes) and keeps one CoSimulation
-(``harness.paper.Simulations``), resetting it (``fmi2Reset``) between runs, with a garbage
+(``harness.studies.runner.Simulations``), resetting it (``fmi2Reset``) between runs, with a garbage
 collection after each run so that its memory stays flat. The workers are separate processes with one thread each (all FMUs of a process
 share one Python interpreter), by default a Dask ``LocalCluster``; ``scheduler`` uses an existing
 cluster, whose workers must see the FMU folder and have the project installed. ``workers = 0``
@@ -90,14 +90,14 @@ import tempfile
 import threading
 import time
 import tomllib
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from . import paper
-from .paper import Estimator, RunSpec
+from .studies import runner
+from .studies.runner import Estimator, RunSpec
 
 SWEEPS = Path(__file__).resolve().parent / "sweeps"
 FLUSH_S = 10.0  # s between Parquet part files at most (while runs complete)
@@ -106,7 +106,7 @@ FLUSH_ROWS = 2000
 _TOP = {"description", "duration", "step", "warmup", "output", "nominal_mass", "acc_sampling", "vehicle",
         "noise", "grid", "monte_carlo", "estimators"}
 AXES = ("road_class", "speed", "mass", "seed")
-DEFAULTS = {"road_class": 3, "speed": paper.SPEED, "mass": paper.NOMINAL_MASS, "seed": 1}
+DEFAULTS = {"road_class": 3, "speed": runner.SPEED, "mass": runner.NOMINAL_MASS, "seed": 1}
 _NOISE = {"acc_sprung_std": "acc_sprung_noise_std", "acc_unsprung_std": "acc_unsprung_noise_std",
           "defl_std": "defl_noise_std"}
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
@@ -146,10 +146,10 @@ class Sweep:
     step: float = 1e-3
     warmup: float = 10.0
     output: Path | None = None
-    nominal_mass: float = paper.NOMINAL_MASS
+    nominal_mass: float = runner.NOMINAL_MASS
     acc_sampling: int = 0
-    vehicle: tuple[float, float, float, float] = paper.PAPER000_VEHICLE
-    noise: tuple[float, float, float] = tuple(paper.NOISE.values())
+    vehicle: tuple[float, float, float, float] = runner.PAPER000_VEHICLE
+    noise: tuple[float, float, float] = tuple(runner.NOISE.values())
     description: str = ""
     source: str = ""
 
@@ -230,16 +230,16 @@ def load_sweep(name: str | Path) -> Sweep:
     acc = data.get("acc_sampling", 0)
     if acc not in (0, 1) or isinstance(acc, bool):
         raise SweepError(f"{src}: acc_sampling = {acc!r} must be 0 or 1")
-    veh = _table(src, data, "vehicle", set(paper.VEHICLE_KEYS))
-    vehicle = tuple(num(k, d, veh, "vehicle.") for k, d in zip(paper.VEHICLE_KEYS, paper.PAPER000_VEHICLE))
+    veh = _table(src, data, "vehicle", set(runner.VEHICLE_KEYS))
+    vehicle = tuple(num(k, d, veh, "vehicle.") for k, d in zip(runner.VEHICLE_KEYS, runner.PAPER000_VEHICLE))
     noi = _table(src, data, "noise", set(_NOISE))
-    noise = tuple(num(k, paper.NOISE[v], noi, "noise.") for k, v in _NOISE.items())
+    noise = tuple(num(k, runner.NOISE[v], noi, "noise.") for k, v in _NOISE.items())
     out = data.get("output")
     if out is not None and not isinstance(out, str):
         raise SweepError(f"{src}: output = {out!r} must be a string (a folder)")
     return Sweep(name=path.stem, points=_points(src, data), estimators=_estimators(src, data), duration=duration,
                  step=step, warmup=warmup, output=Path(out) if out else None,
-                 nominal_mass=num("nominal_mass", paper.NOMINAL_MASS), acc_sampling=int(acc), vehicle=vehicle,
+                 nominal_mass=num("nominal_mass", runner.NOMINAL_MASS), acc_sampling=int(acc), vehicle=vehicle,
                  noise=noise, description=str(data.get("description", "")), source=src)
 
 
@@ -261,8 +261,8 @@ def _table(src: str, data: dict, name: str, allowed: set | None = None) -> dict:
 def _axis_value(src: str, where: str, axis: str, v):
     """One value of an axis, checked and converted (road class letters to 1..8)."""
     if axis == "road_class":
-        if isinstance(v, str) and len(v) == 1 and v.upper() in paper.CLASS_LETTERS:
-            return paper.CLASS_LETTERS.index(v.upper()) + 1
+        if isinstance(v, str) and len(v) == 1 and v.upper() in runner.CLASS_LETTERS:
+            return runner.CLASS_LETTERS.index(v.upper()) + 1
         if isinstance(v, int) and not isinstance(v, bool):
             return v  # out of range: the road FMU refuses it, and the run is recorded as failed
         raise SweepError(f"{src}: {where}road_class value {v!r} must be 'A'..'H' or an integer")
@@ -353,7 +353,7 @@ def _estimators(src: str, data: dict) -> tuple[Estimator, ...]:
 # one run (in a worker process)
 # --------------------------------------------------------------------------------------------------
 _LOCAL = threading.local()  # per worker thread: its CoSimulations and the number of runs done
-_KEPT: list[paper.Simulations] = []  # every thread's, so that close_worker (run in any thread) finds them
+_KEPT: list[runner.Simulations] = []  # every thread's, so that close_worker (run in any thread) finds them
 
 
 def _in_dask_worker_dir() -> None:
@@ -367,11 +367,11 @@ def _in_dask_worker_dir() -> None:
         pass  # not in a Dask worker
 
 
-def _kept(name: str, instrument: bool) -> paper.Simulations:
+def _kept(name: str, instrument: bool) -> runner.Simulations:
     sims = getattr(_LOCAL, name, None)
     if sims is None or not any(s is sims for s in _KEPT):  # none yet, or closed by close_worker
         _in_dask_worker_dir()
-        sims = paper.Simulations(instrument=instrument)
+        sims = runner.Simulations(instrument=instrument)
         setattr(_LOCAL, name, sims)
         _KEPT.append(sims)
     return sims
@@ -385,18 +385,20 @@ def close_worker() -> None:
     _LOCAL.__dict__.clear()
 
 
-def _run_spec(item: tuple[int, RunSpec]) -> tuple[int, dict]:
-    """``paper.run_one`` in a worker, on the worker's kept CoSimulations (timed per instance)."""
-    res = paper.run_one(item[1], sims=_kept("paper_sims", True))
+def _run_spec(item: tuple[int, RunSpec, Callable | None]) -> tuple[int, dict]:
+    """``runner.run_one`` in a worker, on the worker's kept CoSimulations (timed per instance)."""
+    res = runner.run_one(item[1], sims=_kept("paper_sims", True), run=item[2])
     gc.collect()
     return item[0], res
 
 
 def run_specs(specs: Sequence[RunSpec], workers: int = 2, scheduler: str | None = None,
-              progress: bool = True, log: Callable[[str], None] | None = None) -> list[dict]:
-    """``harness.paper`` runs (``run_one`` results, in the order of ``specs``) on Dask: a
-    LocalCluster of ``workers`` processes or the cluster at ``scheduler``; each worker reuses its
-    CoSimulations. What ``python -m harness paper --dask`` runs."""
+              progress: bool = True, log: Callable[[str], None] | None = None,
+              runs: Mapping[str, Callable[[RunSpec], dict]] | None = None) -> list[dict]:
+    """The studies' runs (``runner.run_one`` results, in the order of ``specs``; ``runs`` as for
+    ``runner.run_all``) on Dask: a LocalCluster of ``workers`` processes or the cluster at
+    ``scheduler``; each worker reuses its CoSimulations. What ``python -m harness paper --dask``
+    runs."""
     from distributed import Client
     from tqdm import tqdm
 
@@ -416,10 +418,11 @@ def run_specs(specs: Sequence[RunSpec], workers: int = 2, scheduler: str | None 
                 bar.update(1)
 
             def on_error(item, message: str) -> tuple[int, dict]:
-                i, spec = item
+                i, spec, _ = item
                 return i, {"spec": asdict(spec), "name": spec.name, "ok": False, "wall_s": 0.0, "error": message}
 
-            execute(list(enumerate(specs)), _run_spec, on_result, client, on_error)
+            execute([(i, s, (runs or {}).get(s.study)) for i, s in enumerate(specs)], _run_spec, on_result, client,
+                    on_error)
         finished = True
     finally:
         if finished:
@@ -443,7 +446,7 @@ def run_task(task: Task) -> list[dict]:
     todo = list(task.estimators)
     res: dict = {}
     while todo:
-        res = paper.run_one(task.spec, tuple(todo), sims)
+        res = runner.run_one(task.spec, tuple(todo), sims)
         if res["ok"] or len(todo) == 1 or res.get("instance") not in {e.instance for e in todo}:
             break
         failed[res["instance"]] = res["error"]
@@ -613,7 +616,7 @@ def local_cluster(workers: int):
     several clusters can run side by side)."""
     from distributed import LocalCluster
 
-    return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, env=dict(paper.THREAD_ENV),
+    return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, env=dict(runner.THREAD_ENV),
                         dashboard_address=None, scheduler_kwargs={"dashboard_address": ":0"})  # any free port
 
 
@@ -746,6 +749,6 @@ def summary(folder: Path | str, metric: str = "err_std_hp_pct") -> list[str]:
     for (c, u, m, e), (vals, bad) in sorted(groups.items(), key=lambda kv: tuple(str(x) for x in kv[0])):
         v = np.array([x for x in vals if x is not None], float)
         cell = "–" if not len(v) else f"{np.mean(v):.2f} ± {np.std(v, ddof=1) if len(v) > 1 else 0.0:.2f}"
-        letter = paper.CLASS_LETTERS[c - 1] if 1 <= c <= 8 else str(c)
+        letter = runner.CLASS_LETTERS[c - 1] if 1 <= c <= 8 else str(c)
         lines.append(f"| {letter} | {u:g} | {m:g} | {e} | {cell} | {len(v)} | {bad} |")
     return lines

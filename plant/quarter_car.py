@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import expm
 
+from .step_size import same_step
 from .vehicle import Vehicle
 
 
@@ -84,6 +85,7 @@ class QuarterCar:
         self._A = self._B = self._Ad = self._Bd = None
         self._noise: list[list[float]] = []
         self._noise_i = 0
+        self.discretisations = 0  # matrix exponentials computed (one per step size and mass)
 
     def settle(self, road_height: float) -> None:
         """Put the car at rest in static equilibrium on a road at ``road_height`` (m)."""
@@ -97,9 +99,13 @@ class QuarterCar:
             self._A, self._B = state_matrices(self.vehicle.with_(m_s=m_s))
             self._Ad, self._Bd = discretise(self._A, self._B, h)
             self._key = (m_s, h)
+            self.discretisations += 1
 
     def step(self, road_height: float, h: float, m_s: float | None = None) -> None:
-        """Advance by h seconds with the road held at ``road_height`` (m)."""
+        """Advance by h seconds with the road held at ``road_height`` (m). A step that differs
+        from the previous one by rounding only (plant.step_size) reuses its discretisation."""
+        if self._key is not None:
+            h = same_step(h, self._key[1])
         key = (self.vehicle.m_s if m_s is None else m_s, h)
         if self._key != key:
             self._matrices(*key)

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from . import iso8608
+from .profile_formats import ProfileError, read_profile  # noqa: F401 - re-exported
 
 SYNTH_DX = 0.05  # m between nodes of the synthetic profile
 SYNTH_NODES = 2 ** 20  # nodes per period: the synthetic road repeats every 52.4288 km
@@ -116,64 +117,45 @@ class SyntheticRoad:
         return self._curve.eval(s)
 
 
-class ProfileError(ValueError):
-    """A measured profile file that cannot be used."""
-
-
-def read_profile(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """Read distance (m) and elevation (m) columns from a CSV or whitespace-separated file.
-
-    Lines starting with '#' and one leading header line are skipped. Raises ProfileError naming
-    the file and line for a missing file, a non-numeric row, a NaN, or non-increasing distance.
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise ProfileError(f"profile_file '{path}' does not exist")
-    dist, elev = [], []
-    with open(path, encoding="utf-8", errors="replace") as f:
-        for lineno, line in enumerate(f, 1):
-            text = line.strip()
-            if not text or text.startswith("#"):
-                continue
-            parts = text.replace(",", " ").replace(";", " ").split()
-            try:
-                a, b = float(parts[0]), float(parts[1])
-            except (ValueError, IndexError):
-                if not dist and not any(ch.isdigit() for ch in text.split()[0][:1]):
-                    continue  # a header line before the data
-                raise ProfileError(f"profile_file '{path}' line {lineno}: expected two numbers "
-                                   f"(distance m, elevation m), got {text[:60]!r}") from None
-            if not (math.isfinite(a) and math.isfinite(b)):
-                raise ProfileError(f"profile_file '{path}' line {lineno}: non-finite value {text[:60]!r}")
-            if dist and a <= dist[-1]:
-                raise ProfileError(f"profile_file '{path}' line {lineno}: distance {a:g} m does not "
-                                   f"increase (previous {dist[-1]:g} m)")
-            dist.append(a)
-            elev.append(b)
-    if len(dist) < 2:
-        raise ProfileError(f"profile_file '{path}' holds {len(dist)} data rows; at least 2 are needed")
-    return np.array(dist), np.array(elev)
+PROFILE_END = {0: "stop", 1: "hold", 2: "loop"}
 
 
 class MeasuredRoad:
-    """A measured profile: driving starts at its first distance; PCHIP between samples."""
+    """A measured profile: driving starts at its first distance; PCHIP between samples.
 
-    def __init__(self, distance: np.ndarray, elevation: np.ndarray, name: str = "profile"):
+    ``profile_end`` says what lies past the last sample: 0 = nothing (``eval`` raises a
+    ProfileError that says so), 1 = the last elevation, held flat, 2 = the profile again, shifted
+    by its end-to-start rise per lap so that the road stays continuous.
+    """
+
+    def __init__(self, distance: np.ndarray, elevation: np.ndarray, name: str = "profile", profile_end: int = 0):
         from scipy.interpolate import PchipInterpolator
 
+        if profile_end not in PROFILE_END:
+            raise ValueError(f"profile_end = {profile_end!r} is not one of {PROFILE_END}")
         slope = PchipInterpolator(distance, elevation).derivative()(distance)
         self._curve = _Hermite(np.asarray(distance, float), np.asarray(elevation, float), slope)
         self.name = name
         self.length = float(distance[-1] - distance[0])
+        self.profile_end = int(profile_end)
+        self._rise = float(elevation[-1] - elevation[0])
 
     @classmethod
-    def from_file(cls, path: str | Path) -> "MeasuredRoad":
-        return cls(*read_profile(path), name=str(path))
+    def from_file(cls, path: str | Path, units: str = "", lateral_offset: float = 0.0,
+                  profile_end: int = 0) -> "MeasuredRoad":
+        return cls(*read_profile(path, units, lateral_offset), name=str(path), profile_end=profile_end)
 
     def eval(self, s: float) -> tuple[float, float]:
         if s > self.length * (1 + 1e-12):
-            raise ProfileError(f"travelled distance {s:.3f} m is past the end of {self.name} "
-                               f"({self.length:.3f} m long)")
+            if self.profile_end == 1:
+                return self._curve.eval(self._curve.end)[0], 0.0
+            if self.profile_end == 2:
+                lap = math.floor(s / self.length)
+                h, dh = self._curve.eval(self._curve.start + (s - lap * self.length))
+                return h + lap * self._rise, dh
+            raise ProfileError(f"end of the profile: travelled distance {s:.3f} m is past the end of {self.name} "
+                               f"({self.length:.3f} m long); profile_end = 0 stops here (1 holds the last "
+                               "elevation, 2 loops)")
         return self._curve.eval(self._curve.start + s)
 
     def height(self, s: float) -> float:

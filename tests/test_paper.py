@@ -1,4 +1,4 @@
-"""``python -m harness paper`` (harness/paper.py): a quick study through the built FMUs.
+"""``python -m harness paper`` (harness/studies/): a quick study through the built FMUs.
 
 One seed, 12 s runs, 2 s warm-up, ISO C, plus the 10 ms study and the vehicle-mass case: the
 structure of the tables, JSON and plots, and loose, seed-robust behaviour (a KF with the wrong mass
@@ -17,7 +17,10 @@ from pathlib import Path
 
 import pytest
 
-from harness.paper import ESTIMATORS, MASSES, RunSpec, PaperStudy, mass_segments, parse_classes, run_all
+from harness.studies.paper000 import MASSES
+from harness.studies.paper001 import mass_segments
+from harness.studies.runner import ESTIMATORS, RunSpec, parse_classes, run_all
+from harness.studies.suite import PaperStudy
 
 ROOT = Path(__file__).resolve().parents[1]
 METRICS = ("err_std_raw_pct", "err_std_hp_pct", "gain_hp", "rmse_raw_mm", "rmse_hp_mm", "coverage_2sigma",
@@ -142,15 +145,17 @@ def test_classes_and_arguments_are_checked(dist):
 def test_the_workers_leave_the_fmus_their_own_packages():
     """All FMUs of a process share one module cache: a worker that imported the source tree's
     ``plant`` or ``estimators`` would run them instead of the copies bundled in the FMUs."""
-    code = "import sys, harness.paper; print(sorted(m for m in ('plant', 'estimators') if m in sys.modules))"
+    code = ("import sys, harness.studies.suite, harness.studies.paper000, harness.studies.paper001, "
+            "harness.studies.road_class; print(sorted(m for m in ('plant', 'estimators') if m in sys.modules))")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=60)
     assert proc.returncode == 0 and proc.stdout.strip() == "[]", proc.stdout + proc.stderr
 
 
 def test_the_online_class_study_identifies_the_class(dist):
-    from harness.paper import run_one
+    from harness.studies import road_class
+    from harness.studies.runner import run_one
 
-    r = run_one(RunSpec("class", 4, 2, 15.0, 2.0, 2e-3, str(dist), speed=20.0))
+    r = run_one(RunSpec("class", 4, 2, 15.0, 2.0, 2e-3, str(dist), speed=20.0), run=road_class.run)
     assert r["ok"], r.get("error")
     assert r["class_first_s"] < 10.0  # a 102.4 m window at 20 m/s
     assert r["class_right"] >= 0.95 and set(r["class_counts"]) <= {3, 4, 5}
@@ -159,7 +164,7 @@ def test_the_online_class_study_identifies_the_class(dist):
 _ORPHAN_SCRIPT = """
 import os, sys, time
 sys.path.insert(0, sys.argv[1])
-from harness.paper import process_pool
+from harness.studies.runner import process_pool
 if __name__ == "__main__":
     ex = process_pool(1)
     print(ex.submit(os.getpid).result(), flush=True)

@@ -66,7 +66,8 @@ def test_a_new_class_reruns_the_filter_from_the_start():
         g, s2 = reference_step_response(t[k]), 0.006 ** 2 * min(1.0, t[k] / 5)
         a.add(t[k], x[0, k], V, s2, g, 0.015 if k < 120 else 0.03)
         b.add(t[k], x[0, k], V, s2, g, 0.03)
-    assert a.b == b.b and a.P == b.P
+    # the filter itself is exact; the reported b^ blends the re-run's change in (test_continuity)
+    assert a.x == b.x and a.P == b.P
 
 
 def _run(seed: int, T: float, **kw):

@@ -1,6 +1,6 @@
 """``python -m harness sweep`` (harness/sweep.py): small grids through the built FMUs, on a Dask
 LocalCluster of two worker processes and in this process; skipping what is done, failures
-recorded with their reason, the same numbers as ``harness.paper``, the sweep files."""
+recorded with their reason, the same numbers as ``python -m harness paper``, the sweep files."""
 from __future__ import annotations
 
 import math
@@ -11,7 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from harness import paper
+from harness.studies import runner
+from harness.studies.suite import PaperStudy
 from harness.sweep import SweepError, load_sweep, read_results, run_sweep
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -108,24 +109,24 @@ def test_an_interrupted_sweep_resumes_and_reuses_the_fmus_with_the_numbers_of_pa
     rows = read_results(out).to_pylist()
     assert len(rows) == 6 and len({r["worker"] for r in rows}) == 1
     assert sorted(r["worker_run"] for r in rows) == [1, 1, 2, 3, 4, 5]  # one CoSimulation per call, reset
-    kf = next(e for e in paper.ESTIMATORS if e.instance == "KF")
+    kf = next(e for e in runner.ESTIMATORS if e.instance == "KF")
     for r in [r for r in rows if r["worker_run"] >= 4]:  # after resets, against fresh instances
-        spec = paper.RunSpec("table2", r["road_class"], r["seed"], 1.0, 0.2, 1e-3, str(dist), mass=r["mass"])
-        fresh = paper.run_one(spec, (kf,))["estimators"]["KF"]
+        spec = runner.RunSpec("table2", r["road_class"], r["seed"], 1.0, 0.2, 1e-3, str(dist), mass=r["mass"])
+        fresh = runner.run_one(spec, (kf,))["estimators"]["KF"]
         for k, v in fresh.items():
             assert r[k] == v or (math.isnan(v) and math.isnan(r[k])), k
 
 
 def test_the_table2_sweep_is_the_paper_table2(dist):
     sweep = load_sweep("paper_table2")
-    study = paper.PaperStudy(dist=dist)
+    study = PaperStudy(dist=dist)
     want = {(s.road_class, s.mass, s.seed, s.duration, s.warmup, s.step, s.speed, s.vehicle, s.noise, s.nominal_mass)
             for s in study.specs() if s.study == "table2"}
     got = {(s.road_class, s.mass, s.seed, s.duration, s.warmup, s.step, s.speed, s.vehicle, s.noise, s.nominal_mass)
            for s in (t.spec for t in sweep.tasks(dist))}
     assert got == want and len(got) == 90
     assert [(e.instance, e.parameters, e.true_mass) for e in sweep.estimators] == \
-        [(e.instance, e.parameters, e.true_mass) for e in paper.ESTIMATORS]
+        [(e.instance, e.parameters, e.true_mass) for e in runner.ESTIMATORS]
 
 
 def test_monte_carlo_draws_are_seeded_and_in_range():
@@ -151,14 +152,14 @@ def test_sweep_file_errors_name_the_key(tmp_path, dist):
 def test_paper_runs_on_dask_reuse_the_workers_fmus_with_the_same_numbers(dist, cluster):
     from harness.sweep import run_specs
 
-    specs = [paper.RunSpec("table2", 3, s, 0.5, 0.1, 1e-3, str(dist), mass=590.0) for s in (1, 2, 3)]
-    specs.insert(1, paper.RunSpec("table2", 9, 1, 0.5, 0.1, 1e-3, str(dist)))  # no ISO class 9
+    specs = [runner.RunSpec("table2", 3, s, 0.5, 0.1, 1e-3, str(dist), mass=590.0) for s in (1, 2, 3)]
+    specs.insert(1, runner.RunSpec("table2", 9, 1, 0.5, 0.1, 1e-3, str(dist)))  # no ISO class 9
     got = run_specs(specs, scheduler=cluster[0].scheduler_address, progress=False, log=lambda s: None)
     assert [r["ok"] for r in got] == [True, False, True, True]
     assert "ISORoad" in got[1]["error"] and "road_class" in got[1]["error"]
-    fresh = paper.run_one(specs[3])["estimators"]
+    fresh = runner.run_one(specs[3])["estimators"]
     assert got[3]["estimators"].keys() == fresh.keys()
     for inst, scores in fresh.items():
         for k, v in scores.items():
             assert got[3]["estimators"][inst][k] == v or (math.isnan(v) and math.isnan(got[3]["estimators"][inst][k]))
-    assert set(got[3]["timing"]["do_step_us"]) == {e.instance for e in paper.ESTIMATORS} | {"ISORoad", "QuarterCar"}
+    assert set(got[3]["timing"]["do_step_us"]) == {e.instance for e in runner.ESTIMATORS} | {"ISORoad", "QuarterCar"}

@@ -13,7 +13,7 @@ from plant.quarter_car import NOISE_STD_RANGES, SensorNoise
 from plant.vehicle import DEFAULT_VEHICLE, VEHICLE_RANGES
 
 # unit name -> SI base-unit exponents, for <UnitDefinitions>
-UNITS: dict[str, dict[str, int]] = {
+UNITS: dict[str, dict[str, float]] = {
     "m": {"m": 1},
     "m/s": {"m": 1, "s": -1},
     "m/s2": {"m": 1, "s": -2},
@@ -25,6 +25,7 @@ UNITS: dict[str, dict[str, int]] = {
     "1/m": {"m": -1},
     "s": {"s": 1},
     "1": {},
+    "m/km": {"factor": 1e-3},  # IRI: a slope, 1 m/km = 0.001
 }
 
 
@@ -55,6 +56,14 @@ _STD = (0.0, 1e3)
 _SEED = (0, 2 ** 31 - 1)
 _CLASSES = {c: f"ISO 8608 class {iso8608.class_name(c)}" for c in range(1, 9)}
 _SPEED = (0.0, 100.0)
+_IRI_SEGMENT = Var("iri_segment", "parameter", "Real", "m", 100.0,
+                   "length of the segments the IRI is reported for", (1.0, 1e5))
+
+
+def _iri_output(name: str, of: str) -> Var:
+    return Var(name, "output", "Real", "m/km", None,
+               "International Roughness Index (ASTM E1926: golden car at 80 km/h over the profile in distance, "
+               f"whatever the speed) of {of} over the last completed segment of iri_segment m; 0 before the first")
 
 
 def _vehicle_params(prefix: str) -> list[Var]:
@@ -77,11 +86,23 @@ ISO_ROAD: tuple[Var, ...] = (
     Var("seed", "parameter", "Integer", None, 1, "random seed of the profile: same seed, same road, at any speed",
         _SEED),
     Var("profile_file", "parameter", "String", None, "",
-        "optional measured profile (columns distance m, elevation m; CSV or whitespace); replaces the synthetic one"),
+        "optional measured profile that replaces the synthetic one: columns distance, elevation (CSV or whitespace), "
+        "ProVAL ERD text, or ASAM OpenCRG .crg (binary or ASCII); absolute elevations of any magnitude"),
+    Var("profile_units", "parameter", "String", None, "",
+        "units of profile_file: '' = from its header (else m), 'mm' = elevation unit, 'ft,in' = distance, "
+        "elevation units; any of m, cm, mm, km, ft, in"),
+    _real_param("profile_lateral_offset", "m", 0.0,
+                "OpenCRG: lateral offset v of the driven line from the reference line (left > 0)", (-100.0, 100.0)),
+    Var("profile_end", "parameter", "Integer", None, 0,
+        "past the end of profile_file: 0 = stop (doStep discards with a message), 1 = hold the last elevation, "
+        "2 = loop (the profile again, shifted by its end-to-start rise so that the road stays continuous)",
+        {0: "stop", 1: "hold", 2: "loop"}),
+    _IRI_SEGMENT,
     Var("vehicle_speed", "input", "Real", "m/s", 11.1111, "forward speed (held over the step)", _SPEED),
     Var("road_height", "output", "Real", "m", None, "elevation under the tyre at the travelled distance"),
     Var("road_velocity", "output", "Real", "m/s", None, "time derivative of road_height"),
     Var("distance", "output", "Real", "m", None, "distance travelled"),
+    _iri_output("iri", "road_height"),
 )
 
 QUARTER_CAR: tuple[Var, ...] = (
@@ -99,7 +120,9 @@ QUARTER_CAR: tuple[Var, ...] = (
     Var("acc_sampling", "parameter", "Integer", None, 0,
         "0 = accelerations sampled at the end of the step; 1 = averaged over the step (anti-alias filtered sensor)",
         {0: "end of step", 1: "average over the step"}),
-    Var("road_height", "input", "Real", "m", 0.0, "road elevation under the tyre (held over the step)", (-1e3, 1e3)),
+    Var("road_height", "input", "Real", "m", 0.0,
+        "road elevation under the tyre (held over the step); absolute levels are fine: the plant settles on the "
+        "first value and works relative to it", (-1e4, 1e4)),
     Var("sprung_mass", "input", "Real", "kg", V.m_s, "sprung mass; may change during a run (payload)",
         VEHICLE_RANGES["m_s"]),
     Var("acc_sprung", "output", "Real", "m/s2", None, "measured sprung-mass acceleration (with noise)"),
@@ -143,6 +166,7 @@ SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
     Var("acc_sampling", "parameter", "Integer", None, 0,
         "0 = accelerations sampled at the end of the step; 1 = averaged over the step (anti-alias filtered "
         "sensor); must match the sensor", {0: "end of step", 1: "average over the step"}),
+    _IRI_SEGMENT,
     Var("acc_sprung", "input", "Real", "m/s2", 0.0, "measured sprung-mass acceleration"),
     Var("acc_unsprung", "input", "Real", "m/s2", 0.0, "measured unsprung-mass acceleration"),
     Var("susp_deflection", "input", "Real", "m", 0.0, "measured suspension deflection z_s - z_u"),
@@ -157,6 +181,7 @@ SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
     Var("susp_deflection_est", "output", "Real", "m", None, "estimated suspension deflection z_s - z_u"),
     Var("tire_deflection_est", "output", "Real", "m", None, "estimated tyre deflection z_u - z_r"),
     Var("sprung_mass_est", "output", "Real", "kg", None, "estimated sprung mass"),
+    _iri_output("iri_est", "road_height_est"),
     Var("road_class_est", "output", "Integer", None, None,
         "ISO 8608 class identified online (1..8 = A..H), 0 until enough road has been seen"),
     Var("nis", "output", "Real", "1", None, "normalised innovation squared of the last update (filter health)"),

@@ -1,0 +1,181 @@
+"""``python -m harness paper``: run the chosen studies of ``harness.studies`` through the built
+FMUs and write one report (paper_tables.md, paper_runs.json, figures).
+
+The runs of all chosen studies go to one pool of ``spawn`` worker processes (``runner.run_all``;
+with ``dask`` or ``scheduler``: to Dask workers through ``harness.sweep.run_specs``, each keeping
+its CoSimulations and resetting them between runs). A run that fails is reported with its reason
+and the study goes on. Means ± standard deviations (ddof 1) are over the seeds that completed.
+The command reports, it never tunes: each study marks its targets PASS/MISS.
+"""
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import STUDIES, load
+from .runner import (CLASS_LETTERS, DIST, NOISE_SEED_OFFSET, OUT, RunSpec, Study, jsonable, run_all, whole_steps)
+
+DEFAULT_STUDIES = ("table2", "mass")  # without --study; --study10ms and --class-study N add theirs
+
+
+@dataclass
+class PaperStudy:
+    seeds: int = 10
+    duration: float = 60.0
+    warmup: float = 10.0
+    step: float = 1e-3
+    classes: tuple[int, ...] = (2, 3, 4)
+    workers: int = 2
+    study10ms: bool = False  # also the "10ms" study
+    class_seeds: int = 0  # seeds of the "class" study; 0 = not run unless named in ``studies`` (then ``seeds``)
+    dask: bool = False  # run on Dask (harness.sweep.run_specs): a LocalCluster of ``workers`` or ``scheduler``
+    scheduler: str | None = None
+    dist: Path = DIST
+    out: Path = OUT
+    results: list[dict] = field(default_factory=list)
+    wall_s: float = 0.0
+    studies: tuple[str, ...] = ()  # names in harness.studies.STUDIES; () = DEFAULT_STUDIES
+
+    def __post_init__(self) -> None:
+        if "class" in self.studies and not self.class_seeds:
+            self.class_seeds = self.seeds
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The studies that run, in the order of the registry."""
+        chosen = set(self.studies or DEFAULT_STUDIES)
+        chosen |= {"10ms"} if self.study10ms else set()
+        chosen |= {"class"} if self.class_seeds else set()
+        return tuple(n for n in STUDIES if n in chosen)
+
+    def chosen(self) -> list[Study]:
+        return [load(n) for n in self.names]
+
+    def check(self) -> None:
+        for n in self.studies:
+            load(n)  # ValueError naming the known studies
+        if self.seeds < 1:
+            raise ValueError(f"--seeds = {self.seeds} must be >= 1")
+        if self.workers < 1:
+            raise ValueError(f"--workers = {self.workers} must be >= 1")
+        if not self.step > 0 or not self.duration > 0:
+            raise ValueError("--step and --duration must be > 0")
+        if not 0 <= self.warmup < self.duration:
+            raise ValueError(f"--warmup = {self.warmup} s must be in [0, --duration = {self.duration} s)")
+        if not whole_steps(self.duration, self.step):
+            raise ValueError(f"--duration = {self.duration} s is not a whole number of --step = {self.step} s steps")
+        if not self.classes or any(not 1 <= c <= 8 for c in self.classes):
+            raise ValueError(f"classes {self.classes} must be ISO classes A..H")
+        for s in self.chosen():
+            s.check(self)
+        for f in ("ISORoad.fmu", "QuarterCar.fmu", "SuspensionEstimator.fmu"):
+            if not (Path(self.dist) / f).is_file():
+                raise FileNotFoundError(f"{Path(self.dist) / f} does not exist (build it: .venv/bin/python build.py)")
+
+    def specs(self) -> list[RunSpec]:
+        return [spec for s in self.chosen() for spec in s.specs(self)]
+
+    def runs(self) -> dict:
+        """RunSpec.study -> the function that runs it, of every chosen study."""
+        return {kind: fn for s in self.chosen() for kind, fn in s.runs.items()}
+
+    def run(self, progress: bool = True) -> PaperStudy:
+        self.check()
+        t0 = time.perf_counter()
+        if self.dask or self.scheduler:
+            from ..sweep import run_specs
+
+            self.results = run_specs(self.specs(), self.workers, self.scheduler, progress, runs=self.runs())
+        else:
+            self.results = run_all(self.specs(), self.workers, progress, runs=self.runs())
+        self.wall_s = time.perf_counter() - t0
+        return self
+
+    # -- what the studies read --------------------------------------------------------------------
+    def ok(self, study: str, **match) -> list[dict]:
+        """The completed runs of kind ``study`` whose spec has the values ``match``."""
+        return [r for r in self.results if r["ok"] and r["spec"]["study"] == study
+                and all(r["spec"][k] == v for k, v in match.items())]
+
+    def cell(self, study: str, cls: int, mass: float, inst: str, metric: str, **match) -> np.ndarray:
+        """Per-seed values of one metric of one estimator in one cell of table-2 runs."""
+        return np.array([r["estimators"][inst][metric]
+                         for r in self.ok(study, road_class=cls, mass=mass, **match)], float)
+
+    def failures(self) -> list[dict]:
+        return [r for r in self.results if not r["ok"]]
+
+    def targets(self) -> list[tuple[str, str, str]]:
+        """(target, PASS / MISS / n/a, the numbers) of every chosen study."""
+        return [t for s in self.chosen() for t in s.targets(self)]
+
+    # -- report -----------------------------------------------------------------------------------
+    def timing_markdown(self) -> list[str]:
+        lines = [f"Wall time of the study: {self.wall_s:.0f} s ({self.wall_s / 60:.1f} min) with {self.workers} "
+                 f"worker process(es), {len(self.results)} runs.", "",
+                 "| runs | count | wall per run (s) | µs per step | master overhead µs/step | doStep µs/step by instance | "
+                 "set+get µs/step by instance |", "|---|---|---|---|---|---|---|"]
+        for kind in dict.fromkeys(r["spec"]["study"] for r in self.results):
+            rs = self.ok(kind)
+            if not rs:
+                continue
+            wall = np.array([r["wall_s"] for r in rs])
+            us = np.array([r["timing"]["us_per_step"] for r in rs])
+            if all("do_step_us" in r["timing"] for r in rs):
+                insts = list(rs[0]["timing"]["do_step_us"])
+                ds = ", ".join(f"{i} {np.mean([r['timing']['do_step_us'][i] for r in rs]):.0f}" for i in insts)
+                sg = ", ".join(f"{i} {np.mean([r['timing']['set_get_us'][i] for r in rs]):.0f}" for i in insts)
+                master = f"{np.mean([r['timing']['master_us'] for r in rs]):.0f}"
+            else:
+                ds = sg = master = "–"
+            h = rs[0]["spec"]["step"]
+            lines.append(f"| {kind} ({1e3 * h:g} ms) | {len(rs)} | {wall.mean():.1f} | {us.mean():.0f} | {master} | "
+                         f"{ds} | {sg} |")
+        return lines
+
+    def markdown(self) -> str:
+        L = [f"# Paper tables through the FMUs ({self.dist})", "",
+             f"Seeds 1..{self.seeds} (road seed i, noise seed {NOISE_SEED_OFFSET}+i); {self.duration:g} s runs at "
+             f"{1e3 * self.step:g} ms, scored after a {self.warmup:g} s warm-up; 40 km/h; mean ± std (ddof 1) over "
+             "seeds. HP = estimate and truth through the same zero-phase 0.5 Hz high-pass first.", ""]
+        sections = [m for m in (s.markdown(self) for s in self.chosen()) if m]
+        for i, m in enumerate(sections):
+            L += ([""] if i else []) + m
+        L += ["", "## Targets (reported, never tuned)", "", "| target | result | numbers |", "|---|---|---|"]
+        L += [f"| {t} | {v} | {d} |" for t, v, d in self.targets()]
+        fails = self.failures()
+        L += ["", "## Failed runs", ""]
+        L += [f"- {r['name']}: {r['error']}" for r in fails] if fails else ["none"]
+        L += ["", "## Where the time goes", ""]
+        L += self.timing_markdown()
+        return "\n".join(L) + "\n"
+
+    def to_json(self) -> dict:
+        config = {"seeds": self.seeds, "duration_s": self.duration, "warmup_s": self.warmup, "step_s": self.step,
+                  "classes": [CLASS_LETTERS[c - 1] for c in self.classes], "studies": list(self.names),
+                  "study10ms": "10ms" in self.names, "class_seeds": self.class_seeds, "workers": self.workers,
+                  "dist": str(self.dist)}
+        out: dict = {"config": config}
+        for s in self.chosen():
+            config.update(s.config(self))
+            out.update(s.json(self))
+        out["wall_time_s"] = self.wall_s
+        out["targets"] = [{"target": t, "result": v, "numbers": d} for t, v, d in self.targets()]
+        out["runs"] = [{k: v for k, v in r.items() if k != "traces"} for r in self.results]
+        return jsonable(out)
+
+    def plots(self, out: Path) -> list[Path]:
+        return [f for s in self.chosen() for f in s.plots(self, out)]
+
+    def write(self, out: Path | None = None) -> list[Path]:
+        out = Path(out or self.out)
+        out.mkdir(parents=True, exist_ok=True)
+        md = out / "paper_tables.md"
+        md.write_text(self.markdown())
+        js = out / "paper_runs.json"
+        js.write_text(json.dumps(self.to_json(), indent=1))
+        return [md, js] + self.plots(out)

@@ -1,0 +1,108 @@
+"""harness/studies/: one module per study over one shared runner, without an import circle
+(checked on the source's import statements, also those inside functions, and by importing each
+module alone in a fresh interpreter), and the registry behind ``python -m harness paper --study``."""
+from __future__ import annotations
+
+import ast
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from harness.studies import STUDIES, load
+from harness.studies.runner import RunSpec, Study, run_one
+from harness.studies.suite import PaperStudy
+
+ROOT = Path(__file__).resolve().parents[1]
+FILES = {".".join(p.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__"): p
+         for p in (ROOT / "harness").rglob("*.py")}
+STUDY_MODULES = sorted(m for m in FILES if m.startswith("harness.studies")) + ["harness.sweep"]
+
+
+def _imports(module: str) -> set[str]:
+    """The modules of ``harness`` that ``module`` imports anywhere in its source."""
+    path = FILES[module]
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            parts = package.split(".")
+            base = ".".join(parts[:len(parts) - node.level + 1]) if node.level else ""
+            prefix = ".".join(x for x in (base, node.module) if x)
+            names = [prefix] + [f"{prefix}.{a.name}" for a in node.names]
+        else:
+            continue
+        out |= {n for n in names if n in FILES and n != module}
+    return out
+
+
+def test_the_harness_has_no_import_circle():
+    graph = {m: _imports(m) for m in FILES}
+    assert {"harness.studies.runner", "harness.studies.paper000"} <= set(graph)  # the parser sees the package
+    assert "harness.studies.runner" in graph["harness.sweep"] and "harness.studies.runner" in graph[
+        "harness.studies.paper001"]
+    assert not {m for m in graph["harness.studies.runner"] if m.startswith(("harness.studies", "harness.sweep"))}
+    state: dict[str, int] = {}  # 1 on the path, 2 done
+
+    def visit(m: str, path: list[str]) -> None:
+        state[m] = 1
+        for n in sorted(graph[m]):
+            assert state.get(n) != 1, "import circle: " + " -> ".join(path[path.index(n):] + [n])
+            if n not in state:
+                visit(n, path + [n])
+        state[m] = 2
+
+    for m in sorted(graph):
+        if m not in state:
+            visit(m, [m])
+
+
+@pytest.mark.parametrize("module", STUDY_MODULES)
+def test_each_module_imports_alone(module):
+    proc = subprocess.run([sys.executable, "-c", f"import {module}"], capture_output=True, text=True, cwd=ROOT,
+                          timeout=60)
+    assert proc.returncode == 0, proc.stderr
+
+
+def test_every_registered_study_loads_under_its_name():
+    for name in STUDIES:
+        s = load(name)
+        assert isinstance(s, Study) and s.name == name
+    with pytest.raises(ValueError, match="no study 'robustness'.*table2, 10ms, mass, class"):
+        load("robustness")
+
+
+def test_the_studies_chosen_and_their_runs(tmp_path):
+    assert PaperStudy().names == ("table2", "mass")
+    assert PaperStudy(study10ms=True, class_seeds=1).names == ("table2", "10ms", "mass", "class")
+    s = PaperStudy(studies=("class",), seeds=2, dist=tmp_path)
+    assert s.names == ("class",) and s.class_seeds == 2  # --study class alone: --seeds seeds
+    specs = s.specs()
+    assert len(specs) == 5 * 3 * 2 and {x.study for x in specs} == {"class"}
+    assert s.runs() == {"class": load("class").runs["class"]}
+    both = PaperStudy(studies=("mass", "10ms"), seeds=1, classes=(3,), dist=tmp_path)
+    assert [x.study for x in both.specs()] == ["table2_10ms"] * 6 + ["mass"]  # registry order
+
+
+def test_a_run_without_its_function_fails_with_the_reason(tmp_path):
+    r = run_one(RunSpec("mass", 3, 1, 1.0, 0.0, 1e-3, str(tmp_path)))
+    assert not r["ok"] and "no run function" in r["error"] and "'mass'" in r["error"]
+
+
+def test_cli_study_chooses_the_studies(dist, tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "harness", "paper", "--study", "mass", "--seeds", "1", "--step",
+                           "0.002", "-q", "--dist", str(dist), "--out", str(tmp_path)],
+                          capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    data = json.loads((tmp_path / "paper_runs.json").read_text())
+    assert data["config"]["studies"] == ["mass"] and [r["spec"]["study"] for r in data["runs"]] == ["mass"]
+    md = (tmp_path / "paper_tables.md").read_text()
+    assert "(b) Vehicle-mass paper" in md and "(a) MME&KF" not in md
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["mass_paper001.png", "paper_runs.json", "paper_tables.md"]
+    bad = subprocess.run([sys.executable, "-m", "harness", "paper", "--study", "nope", "--dist", str(dist)],
+                         capture_output=True, text=True, cwd=ROOT, timeout=60)
+    assert bad.returncode == 1 and bad.stderr.count("\n") == 1 and "no study 'nope'" in bad.stderr, bad.stderr
