@@ -123,6 +123,10 @@ class QuarterCar:
             acc = (r1[0] * z_s + r1[1] * v_s + r1[2] * z_u + r1[3] * v_u + b1 * road_height,
                    r3[0] * z_s + r3[1] * v_s + r3[2] * z_u + r3[3] * v_u + b3 * road_height)
         self.acc_true = acc
+        self._measure(acc, z_s, z_u)
+
+    def _measure(self, acc: tuple[float, float], z_s: float, z_u: float) -> None:
+        """Add the seeded sensor noise to the true accelerations and deflection."""
         # the noise is drawn in blocks: the same numbers as one draw of 3 per step
         if self._noise_i >= len(self._noise):
             self._noise = self.rng.standard_normal((256, 3)).tolist()

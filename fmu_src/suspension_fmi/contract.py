@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 from plant import iso8608
 from plant.quarter_car import NOISE_STD_RANGES, SensorNoise
+from plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_BUMP_STOPS, DEFAULT_DAMPER, FORCE_RANGES
 from plant.vehicle import DEFAULT_VEHICLE, VEHICLE_RANGES
 
 # unit name -> SI base-unit exponents, for <UnitDefinitions>
@@ -21,6 +22,8 @@ UNITS: dict[str, dict[str, float]] = {
     "N": {"kg": 1, "m": 1, "s": -2},
     "N/m": {"kg": 1, "s": -2},
     "N.s/m": {"kg": 1, "s": -1},
+    "Pa": {"kg": 1, "m": -1, "s": -2},
+    "m2": {"m": 2},
     "m3": {"m": 3},
     "1/m": {"m": -1},
     "s": {"s": 1},
@@ -75,6 +78,29 @@ def _vehicle_params(prefix: str) -> list[Var]:
     ]
 
 
+def _force_params() -> list[Var]:
+    """The nonlinear plant's parameters (spring_model or damper_model = 1): defaults and ranges from
+    plant/suspension_forces.py."""
+    texts = {
+        "air_area": ("m2", "air spring effective area A_e"),
+        "air_volume": ("m3", "air spring gas volume V_0 at the static ride height"),
+        "air_kappa": ("1", "polytropic exponent of the air (1 isothermal .. 1.4 adiabatic)"),
+        "air_pressure_max": ("Pa", "highest absolute pressure the levelling valve supplies: the static pressure "
+                                   "p_atm + sprung_mass*g/air_area must stay below it"),
+        "damper_c_rebound": ("N.s/m", "damper slope in rebound (extension) below the knee"),
+        "damper_c_compression": ("N.s/m", "damper slope in compression below the knee"),
+        "damper_knee_rebound": ("m/s", "rebound velocity of the damper's knee"),
+        "damper_knee_compression": ("m/s", "compression velocity of the damper's knee"),
+        "damper_c_rebound_high": ("N.s/m", "damper slope in rebound beyond the knee"),
+        "damper_c_compression_high": ("N.s/m", "damper slope in compression beyond the knee"),
+        "bump_stop_gap": ("m", "compression from the static point where the bump stop starts (nonlinear plant)"),
+        "rebound_stop_gap": ("m", "extension from the static point where the rebound stop starts (nonlinear plant)"),
+        "bump_stop_stiffness": ("N/m", "stiffness of the bump and rebound stops, 0 = no stops (nonlinear plant)"),
+    }
+    defaults = {**vars(DEFAULT_AIR_SPRING), **vars(DEFAULT_DAMPER), **vars(DEFAULT_BUMP_STOPS)}
+    return [_real_param(name, unit, defaults[name], text, FORCE_RANGES[name]) for name, (unit, text) in texts.items()]
+
+
 ISO_ROAD: tuple[Var, ...] = (
     Var("road_class", "parameter", "Integer", None, 3,
         "ISO 8608 class 1..8 = A..H; sets Gd(n0) = 16e-6*4^(class-1) m3", _CLASSES),
@@ -107,10 +133,13 @@ ISO_ROAD: tuple[Var, ...] = (
 
 QUARTER_CAR: tuple[Var, ...] = (
     *_vehicle_params("of the plant"),
-    Var("spring_model", "parameter", "Integer", None, 0, "0 = linear spring (1 = air spring: not available yet)",
-        {0: "linear"}),
+    Var("spring_model", "parameter", "Integer", None, 0,
+        "0 = linear spring k_s; 1 = self-levelling polytropic air spring (air_* parameters; k_s unused)",
+        {0: "linear", 1: "air spring"}),
     Var("damper_model", "parameter", "Integer", None, 0,
-        "0 = linear damper (1 = asymmetric piecewise: not available yet)", {0: "linear"}),
+        "0 = linear damper c_s; 1 = asymmetric piecewise-linear damper (damper_* parameters; c_s unused)",
+        {0: "linear", 1: "asymmetric piecewise-linear"}),
+    *_force_params(),
     _real_param("acc_sprung_noise_std", "m/s2", NOISE.acc_sprung,
                 "std of white noise on the measured sprung-mass acceleration", _STD),
     _real_param("acc_unsprung_noise_std", "m/s2", NOISE.acc_unsprung,
@@ -135,7 +164,15 @@ QUARTER_CAR: tuple[Var, ...] = (
     Var("z_u", "output", "Real", "m", None, "true unsprung-mass displacement from static equilibrium"),
     Var("v_u", "output", "Real", "m/s", None, "true unsprung-mass velocity"),
     Var("tire_deflection", "output", "Real", "m", None, "z_u - road_height"),
-    Var("tire_force", "output", "Real", "N", None, "dynamic tyre force k_t*(road_height - z_u)"),
+    Var("tire_force", "output", "Real", "N", None,
+        "dynamic tyre force k_t*(road_height - z_u); the nonlinear plant's tyre cannot pull, so it stays "
+        ">= -(sprung_mass + m_u)*g"),
+    Var("tire_contact", "output", "Integer", None, None,
+        "1 = tyre on the road, 0 = it left the road during the step (the linear plant's tyre pulls instead: "
+        "0 when it would)"),
+    Var("bump_stop", "output", "Integer", None, None,
+        "0 = stops free, 1 = bump (compression) stop, 2 = rebound stop touched during the step "
+        "(nonlinear plant; the linear plant has none)"),
 )
 
 SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
