@@ -128,6 +128,11 @@ class EstimatorConfig:
     # reference and wanders (and a burst on a channel kicks it). ISO C, 40 km/h, HP error on the
     # exact vehicle 2.59 / 2.42 % and with c_s -30 % 3.28 / 3.03 % at 0 / 1 Hz
     align_hz: float = 1.0
+    # corner (Hz) of the slow mean of the deflection that the road filters leave out; None = 0.02
+    # with road_estimator 2, else 0 (off). An asymmetric damper (3:1 rebound : compression) lowers
+    # the body's mean position by ~6 mm on ISO C at 40 km/h: to a linear model that is a constant
+    # spring force, which it integrates into a drift of metres
+    defl_offset_hz: float | None = None
     anchor_hold: float = 0.5  # s: after an update without every channel the output fades from the anchor's
     # Mass feedback: the road filter is rebuilt at the since-last-change least-squares mass
     # (MassEstimator.mass_slow) when it differs from the model mass by more than
@@ -249,6 +254,10 @@ class SuspensionEstimator:
             self.anchor.R = self.R
         self._blend = Blend(cfg.blend_hz)
         self._hold_left = 0.0  # s of the anchor hold left (see _after_update)
+        self._d_alpha_hz = float((0.02 if cfg.road_estimator == 2 else 0.0) if cfg.defl_offset_hz is None
+                                 else cfg.defl_offset_hz)
+        self._d_mean = 0.0  # m, slow mean of the deflection (defl_offset_hz)
+        self._d_h = None
         # mass estimates stay within 0.1-10 x the nominal mass and within the vehicle ranges
         lo, hi = VEHICLE_RANGES["m_s"][:2]
         bounds = (max(0.1 * cfg.m_s_nominal, lo), min(10.0 * cfg.m_s_nominal, hi))
@@ -591,6 +600,13 @@ class SuspensionEstimator:
         vals = ((float(acc_sprung), float(acc_unsprung), float(deflection)) if cfg.use_deflection
                 else (float(acc_sprung), float(acc_unsprung)))
         z = np.array(vals)
+        if self._d_alpha_hz > 0.0 and cfg.use_deflection and math.isfinite(vals[2]):
+            # the deflection's slow mean (module doc: a nonlinear damper's static shift) is left
+            # out of the road filters; the body height output keeps it
+            if h != self._d_h:
+                self._d_alpha, self._d_h = 1.0 - math.exp(-2 * math.pi * self._d_alpha_hz * h), h
+            self._d_mean += self._d_alpha * (vals[2] - self._d_mean)
+            z[2] -= self._d_mean
         self.time += h
         self._h = h
         self.distance += abs(speed) * h
@@ -744,11 +760,11 @@ class SuspensionEstimator:
         out["road_height_est"] = x[IZR] + shift
         out["road_velocity_est"] = x[IVR]
         out["road_height_std"] = math.sqrt(var) if var >= 0.0 else math.nan
-        out["z_s_est"] = x[IZS] + shift
+        out["z_s_est"] = x[IZS] + shift + self._d_mean
         out["v_s_est"] = x[IVS]
         out["z_u_est"] = x[IZU] + shift
         out["v_u_est"] = x[IVU]
-        out["susp_deflection_est"] = x[IZS] - x[IZU]
+        out["susp_deflection_est"] = x[IZS] - x[IZU] + self._d_mean
         out["tire_deflection_est"] = x[IZU] - x[IZR]
         out["sprung_mass_est"] = float(self.mass_est.mass if self.mass_est is not None
                                        else cfg.m_s_nominal)
