@@ -1,4 +1,26 @@
-"""SuspensionEstimator: road profile (KF or MME&KF) + sprung mass (RLS) + online ISO class.
+"""SuspensionEstimator: road profile (KF, MME&KF, or the robust default) + sprung mass (RLS) +
+online ISO class.
+
+Road estimators (contract ``road_estimator``): 0 the KF of the exact linear model, 1 MME&KF,
+2 (default) the robust combination of docs/robustness.md:
+
+* the force-error filter (``self.kf``): the KF with the suspension-force error state of
+  ``model.force_error_matrices``; its road follows from the whole-corner force balance
+  m_s a_s + m_u a_u = k_t (z_r - z_u), which holds for any spring and damper law, so a wrong
+  c_s or k_s costs little in band. It gates, rejects and re-filters as the KF does;
+* the anchor (``self.anchor``): the exact-model KF built at the identified mass and damping
+  (``MassEstimator`` with ``estimate_damping``: the since-change least squares of [m_s, c]),
+  run on the same update decisions. The force-error filter's free force error leaves the
+  body's absolute position to the double-integrated accelerometer (raw road error ~38 mm
+  against ~4 mm on ISO C at 40 km/h); below ``blend_hz`` the road, body and wheel heights are
+  the anchor's (a second-order low-pass of their difference is added), and each step the
+  force-error filter's common velocity is pulled towards the anchor's (``align_hz``);
+* after an update without every channel the output is the anchor's and fades back over
+  ``anchor_hold`` s (the force-error filter needs all three channels), and both filters
+  restart at their fixed points when it ends. ``road_height_std`` is the anchor's;
+* the anchor restarts from the force-error filter's state when the two disagree by more than
+  ``anchor_gate`` times the force-error filter's own std (road height or body velocity): its
+  linear spring and damper are then wrong at low frequency (a nonlinear suspension).
 
 The FMU adapter calls ``SuspensionEstimator(config).step(acc_sprung, acc_unsprung, deflection,
 speed, h)`` once per doStep; it returns a dict keyed by the contract's output names. The
@@ -52,6 +74,10 @@ OUTPUTS = ("road_height_est", "road_velocity_est", "road_height_std", "z_s_est",
            "road_class_est", "nis", "status", "iri_est")
 
 STATUS_OK, STATUS_REJECTED, STATUS_REINIT = 0, 1, 2
+# road_estimator 2: this many anchor restarts within this many seconds and the anchor is no longer
+# used (linear plant: 0-7 restarts in 40 s with a vehicle 30 % off; air spring + asymmetric
+# damper: ~30 per second)
+ANCHOR_DISTRUST_RESETS, ANCHOR_DISTRUST_SPAN = 20, 10.0
 START_TERM_SPAN = 400.0  # s after a (re)start beyond which the start height is left out (g ~ 1e-8)
 
 
@@ -128,11 +154,10 @@ class EstimatorConfig:
     # reference and wanders (and a burst on a channel kicks it). ISO C, 40 km/h, HP error on the
     # exact vehicle 2.59 / 2.42 % and with c_s -30 % 3.28 / 3.03 % at 0 / 1 Hz
     align_hz: float = 1.0
-    # corner (Hz) of the slow mean of the deflection that the road filters leave out; None = 0.02
-    # with road_estimator 2, else 0 (off). An asymmetric damper (3:1 rebound : compression) lowers
-    # the body's mean position by ~6 mm on ISO C at 40 km/h: to a linear model that is a constant
-    # spring force, which it integrates into a drift of metres
-    defl_offset_hz: float | None = None
+    # road_estimator 2: the anchor restarts from the force-error filter's state when it differs
+    # from it by more than this many of the force-error filter's own std (road height or body
+    # velocity); 0 = never
+    anchor_gate: float = 5.0
     anchor_hold: float = 0.5  # s: after an update without every channel the output fades from the anchor's
     # Mass feedback: the road filter is rebuilt at the since-last-change least-squares mass
     # (MassEstimator.mass_slow) when it differs from the model mass by more than
@@ -254,10 +279,9 @@ class SuspensionEstimator:
             self.anchor.R = self.R
         self._blend = Blend(cfg.blend_hz)
         self._hold_left = 0.0  # s of the anchor hold left (see _after_update)
-        self._d_alpha_hz = float((0.02 if cfg.road_estimator == 2 else 0.0) if cfg.defl_offset_hz is None
-                                 else cfg.defl_offset_hz)
-        self._d_mean = 0.0  # m, slow mean of the deflection (defl_offset_hz)
-        self._d_h = None
+        self.anchor_resets = 0
+        self._reset_times: deque = deque()
+        self.anchor_trusted = self.anchor is not None
         # mass estimates stay within 0.1-10 x the nominal mass and within the vehicle ranges
         lo, hi = VEHICLE_RANGES["m_s"][:2]
         bounds = (max(0.1 * cfg.m_s_nominal, lo), min(10.0 * cfg.m_s_nominal, hi))
@@ -335,7 +359,7 @@ class SuspensionEstimator:
         the vehicle is the model's and the sensors as configured. Recomputed (about 1.5 ms)
         when the class, the step or the speed (by 5 %) changes; 1 for MME&KF (not this
         filter form) or without a fixed point."""
-        kf, m = (self.kf, self.model) if self.anchor is None else (self.anchor, self.anchor_model)
+        kf, m = (self.anchor, self.anchor_model) if self.anchor_trusted else (self.kf, self.model)
         cls = self.assumed_class
         hon = self._honest
         if hon is not None and hon[0] is m and hon[1] == cls:  # the per-step path
@@ -368,7 +392,7 @@ class SuspensionEstimator:
         has a fixed point; the table is made once, at the first model, and kept through
         rebuilds (their stationary P is close)."""
         if self._buildup is None:
-            kf = self.kf if self.anchor is None else self.anchor
+            kf = self.anchor if self.anchor_trusted else self.kf
             if isinstance(kf, MMEKF) or kf.stationary_solution is None:
                 self._from_rest = False
                 return 0.0
@@ -496,6 +520,8 @@ class SuspensionEstimator:
         channels (without a_s its force error is unobserved; without d nothing ties the body to
         the wheel); the anchor's model carries a missing channel (a deflection stuck for 4 s
         left the force-error filter at 26 % HP error, the anchor at 10 %)."""
+        if not self.anchor_trusted:
+            return
         if partial:
             self._hold_left = self.cfg.anchor_hold
         elif self._hold_left > 0.0:
@@ -525,8 +551,27 @@ class SuspensionEstimator:
             self.kf.x = x
 
     def _blend_step(self) -> None:
-        if self.anchor is not None:
-            self._blend.step(float(self.anchor.x[IZR] - self.kf.x[IZR]), self._h)
+        a = self.anchor
+        if self.anchor_trusted:
+            kf, g = self.kf, self.cfg.anchor_gate
+            y = self._blend.step(float(a.x[IZR] - kf.x[IZR]), self._h)
+            P = kf.P
+            if g > 0 and (y * y > g * g * P[IZR, IZR] or (a.x[IVS] - kf.x[IVS]) ** 2 > g * g * P[IVS, IVS]):
+                # the anchor disagrees with the force-error filter beyond what the latter's own
+                # error explains: its linear spring and damper are wrong at low frequency (a
+                # nonlinear suspension): it restarts from the force-error filter's state
+                a.x = kf.x[:a.dim_x].copy()
+                self._blend.reset()
+                self.anchor_resets += 1
+                recent = self._reset_times
+                recent.append(self.time)
+                while recent and recent[0] < self.time - ANCHOR_DISTRUST_SPAN:
+                    recent.popleft()
+                if len(recent) >= ANCHOR_DISTRUST_RESETS:
+                    # restarting does not help: the suspension is not linear at low frequency;
+                    # from here on the output is the force-error filter's alone
+                    self.anchor_trusted = False
+                    self._hold_left = 0.0
 
     def _episode_closed(self) -> bool:
         return (self._confirmed_for >= self.cfg.refilter_confirm
@@ -600,13 +645,6 @@ class SuspensionEstimator:
         vals = ((float(acc_sprung), float(acc_unsprung), float(deflection)) if cfg.use_deflection
                 else (float(acc_sprung), float(acc_unsprung)))
         z = np.array(vals)
-        if self._d_alpha_hz > 0.0 and cfg.use_deflection and math.isfinite(vals[2]):
-            # the deflection's slow mean (module doc: a nonlinear damper's static shift) is left
-            # out of the road filters; the body height output keeps it
-            if h != self._d_h:
-                self._d_alpha, self._d_h = 1.0 - math.exp(-2 * math.pi * self._d_alpha_hz * h), h
-            self._d_mean += self._d_alpha * (vals[2] - self._d_mean)
-            z[2] -= self._d_mean
         self.time += h
         self._h = h
         self.distance += abs(speed) * h
@@ -716,7 +754,7 @@ class SuspensionEstimator:
         if cfg.refilter_span > 0:
             self._keep_snapshots()
         x = kf.x.tolist()
-        if self.anchor is not None:
+        if self.anchor_trusted:
             low = self._blend.y  # m, the anchor's road below blend_hz minus the road filter's
             x[IZR] += low
             x[IZS] += low
@@ -732,7 +770,7 @@ class SuspensionEstimator:
         # started on (or stood on at a re-initialisation), z_0, adds -z_0 g(t) to the raw error
         # (model.start_level_std), z_0 ~ the road-height std of the assumed class. The KF
         # estimates z_0 from its own road estimate (start_offset.py) and adds g(t) z_0^.
-        var = max(float((kf if self.anchor is None else self.anchor).P[IZR, IZR]), 0.0) * self._honest_ratio()
+        var = max(float((self.anchor if self.anchor_trusted else kf).P[IZR, IZR]), 0.0) * self._honest_ratio()
         t_rel = self.time - self._t_reset
         if self._from_rest:
             var *= 1.0 - self._deficit(t_rel, h)
@@ -760,11 +798,11 @@ class SuspensionEstimator:
         out["road_height_est"] = x[IZR] + shift
         out["road_velocity_est"] = x[IVR]
         out["road_height_std"] = math.sqrt(var) if var >= 0.0 else math.nan
-        out["z_s_est"] = x[IZS] + shift + self._d_mean
+        out["z_s_est"] = x[IZS] + shift
         out["v_s_est"] = x[IVS]
         out["z_u_est"] = x[IZU] + shift
         out["v_u_est"] = x[IVU]
-        out["susp_deflection_est"] = x[IZS] - x[IZU] + self._d_mean
+        out["susp_deflection_est"] = x[IZS] - x[IZU]
         out["tire_deflection_est"] = x[IZU] - x[IZR]
         out["sprung_mass_est"] = float(self.mass_est.mass if self.mass_est is not None
                                        else cfg.m_s_nominal)
