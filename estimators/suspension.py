@@ -725,8 +725,10 @@ class SuspensionEstimator:
                 # RLS (whose regressor does not use the road filter) must go on learning, else a
                 # wrong mass on a rough road locks itself in (rejections -> no mass update)
                 ok_a = ok_d = True
-            a_use = acc_sprung if ok_a else float(self.model.H[0] @ kf.x)
-            d_use = deflection if ok_d else float(kf.x[IZS] - kf.x[IZU])
+            # (road_estimator 2: the anchor's, whose model ties the body to the wheel)
+            src, sm = (self.anchor, self.anchor_model) if self.anchor_trusted else (kf, self.model)
+            a_use = acc_sprung if ok_a else float(sm.H[0] @ src.x)
+            d_use = deflection if ok_d else float(src.x[IZS] - src.x[IZU])
             me.update(a_use, d_use, h, use=ok_a and ok_d and status != STATUS_REINIT)
             if me.resets != self._resets_seen:  # a payload change detected
                 self._resets_seen = me.resets
