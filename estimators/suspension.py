@@ -81,6 +81,16 @@ ANCHOR_DISTRUST_RESETS, ANCHOR_DISTRUST_SPAN = 20, 10.0
 START_TERM_SPAN = 400.0  # s after a (re)start beyond which the start height is left out (g ~ 1e-8)
 
 
+def _apply(kf: LinearKF, z: np.ndarray, rows) -> None:
+    """One step of ``kf``: rows None = full update, else predict and update these rows (if any)."""
+    if rows is None:
+        kf.step(z)
+    else:
+        kf.predict_only()
+        if len(rows):
+            kf.update_rows(z, rows)
+
+
 class Blend:
     """Second-order Butterworth low-pass (corner ``hz``) of a scalar, one sample per step of h s
     (coefficients of scipy.signal.butter, direct form II transposed); ``y`` the last output."""
@@ -468,15 +478,9 @@ class SuspensionEstimator:
 
     def _filter(self, z: np.ndarray, rows) -> None:
         """Replay one recorded step: rows None = full update, else the rows used (may be none)."""
-        for kf in (self.kf, self.anchor):
-            if kf is None:
-                continue
-            if rows is None:
-                kf.step(z)
-            else:
-                kf.predict_only()
-                if len(rows):
-                    kf.update_rows(z, rows)
+        _apply(self.kf, z, rows)
+        if self.anchor is not None:
+            _apply(self.anchor, z, rows)
         self._after_update(rows is not None)
         self._blend_step()
 
@@ -686,12 +690,7 @@ class SuspensionEstimator:
         rows = None if valid is None or valid.all() else np.flatnonzero(valid)
         a = self.anchor
         if a is not None:  # the same decisions as the road filter's
-            if rows is None:
-                a.step(z)
-            else:
-                a.predict_only()
-                if len(rows):
-                    a.update_rows(z, rows)
+            _apply(a, z, rows)
             self._after_update(rows is not None)
         if valid is None or valid.all():
             valid = (True, True, True)
