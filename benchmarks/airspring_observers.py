@@ -15,34 +15,25 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the test's ride and noise
 
 
 def run(cls: int, seconds: float, seed: int) -> list[tuple]:
     from estimators import EstimatorConfig, SuspensionEstimator
     from estimators.airspring_observers import EKF, UKF, DualObserver, NonlinearModel
-    from estimators.model import measurement_covariance
     from harness.metrics import road_scores
     from plant import iso8608
-    from plant.nonlinear_car import NonlinearQuarterCar
-    from plant.quarter_car import SensorNoise
-    from plant.road import SyntheticRoad
     from plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_DAMPER
     from plant.vehicle import DEFAULT_VEHICLE as V
+    from test_airspring_observers import SPEED as speed, R, ride
 
-    h, speed, noise = 0.001, 40 / 3.6, SensorNoise()
-    gd = iso8608.class_psd_n0(cls)
-    road = SyntheticRoad(gd, seed=seed)
-    n = int(round(seconds / h))
-    z = np.array([road.height((k + 1) * h * speed) for k in range(n)]) - road.height(0.0)
-    plant = NonlinearQuarterCar(V, DEFAULT_AIR_SPRING, DEFAULT_DAMPER, noise=noise, noise_seed=seed + 1)
-    plant.settle(0.0)
-    meas = np.empty((n, 3))
-    for k, r in enumerate(z):
-        plant.step(r, h)
-        meas[k] = plant.measured
-    R = measurement_covariance(noise.acc_sprung, noise.acc_unsprung, noise.deflection)
+    h, gd = 0.001, iso8608.class_psd_n0(cls)
+    t, meas, z = ride(h, seconds, seed, gd)
+    n = len(t)
     nl = NonlinearModel(V, DEFAULT_AIR_SPRING, DEFAULT_DAMPER, speed, gd)
     linear = NonlinearModel(V, None, None, speed, gd)
     filters = {
@@ -54,7 +45,6 @@ def run(cls: int, seconds: float, seed: int) -> list[tuple]:
     }
     default = SuspensionEstimator(EstimatorConfig())  # told the contract's linear defaults
     filters["today's default estimator"] = default
-    t = (np.arange(n) + 1) * h
     rows = []
     for name, f in filters.items():
         t0 = time.perf_counter()

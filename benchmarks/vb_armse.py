@@ -5,9 +5,11 @@ whose noise grows, and the step cost of the VB core.
                                             [--growth-seeds N] [--timing-steps N] [--json PATH]
 
 - ARMSE (``harness.vb_study.armse_table``): the authors' scenario (E / C / A stretches, oracle
-  class switch), rows KFTCM, KFNCM, VB forward, VB + RTS ("proposed"), KFNCM + RTS,
-  KFTCM + RTS over ``--runs`` Monte-Carlo runs, with the change against KFNCM in % and the
-  paper's claimed reductions of "proposed" against KFNCM (its Tables 3 and 4).
+  class switch), rows KFTCM, KFNCM, RSAKF, VBAKF-R, VB forward, VB + RTS ("proposed"),
+  KFNCM + RTS, KFTCM + RTS, and KFNCM, VB forward, VB + RTS with the road classifier in the
+  loop instead of the oracle, over ``--runs`` Monte-Carlo runs, with the change against KFNCM
+  in % and the paper's claimed reductions of "proposed" against KFNCM (its Tables 3 and 4);
+  then the fraction of each stretch's steps on which the in-loop class is right.
 - Noise growth (``harness.vb_study.noise_growth``): our model, the body accelerometer's std 4x
   from 4 s, seeds 1..``--growth-seeds``; KF, VB (tau = 0.8, the paper's) and VB (tau = inf, R
   only), RMSE over 5..12 s and the VB's estimated std of that sensor.
@@ -158,6 +160,9 @@ def main(argv: list[str] | None = None) -> int:
           f"{res['seconds']:.0f} s; position mm, velocity mm/s (change vs KFNCM ± its Monte-Carlo "
           f"standard error from batch means over chunks of {a.chunk} runs)\n")
     print(_table(res))
+    print(f"\nIn-loop classifier (blocks of {res['class_block']} steps): right class on "
+          + ", ".join(f"{100 * c:.1f} %" for c in res["classifier_accuracy"])
+          + f" of the scored steps of stretches {' / '.join(STRETCHES)}")
     if a.growth_seeds:
         text, out["growth"] = _growth(a.growth_seeds)
         print("\n## Body accelerometer noise std 4x from 4 s (ISO C, 40 km/h, 5 ms), RMSE 5..12 s "

@@ -4,6 +4,7 @@
 - ``kalman``: Kalman filter (filterpy-identical) and MME&KF
 - ``mass``: forgetting-factor RLS sprung-mass estimation on a mass-independent regressor
 - ``road_class``: online ISO 8608 class from the PSD of the estimated road
+- ``response_class``: ISO 8608 class from the measured response (streaming linear SVM, plain-data model)
 - ``start_offset``: the road height the car started on, from the road estimate
 - ``steady_state``: the filter's steady-state error on an ISO road, in the frequency domain
 - ``suspension``: ``SuspensionEstimator``, the object the FMU adapter drives

@@ -49,7 +49,8 @@ Choices where the paper is silent or differs from its code (the code is followed
 - The covariance update is the simple form Sigma - K H Sigma (the code's), symmetrised.
 
 ``vb_update`` works on a single filter or on a stack of independent filters (leading axes:
-Monte-Carlo runs); u and t are the same for all of them (they do not depend on the data).
+Monte-Carlo runs); u is one number for all of them, or one per filter (filters whose R prior was
+restarted at different steps, e.g. by a road classifier in the loop).
 """
 from __future__ import annotations
 
@@ -72,24 +73,25 @@ def _sym(a: np.ndarray) -> np.ndarray:
 
 
 def vb_update(x_pred: np.ndarray, P_pred: np.ndarray, z: np.ndarray, H: np.ndarray,
-              u: float, U: np.ndarray, rho: float = RHO, tau: float = TAU,
-              n_iter: int = N_ITER) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+              u: float | np.ndarray, U: np.ndarray, rho: float = RHO, tau: float = TAU,
+              n_iter: int = N_ITER) -> tuple[np.ndarray, np.ndarray, float | np.ndarray, np.ndarray]:
     """One VB measurement update (module doc; paper 004 eqs. 28-32, Algorithm 1).
 
     x_pred (..., n), P_pred (..., n, n): the nominal prediction; z (..., m) the measurement;
-    H (m, n); u (dimensionless) and U (..., m, m) the IW parameters of R after the previous step;
-    tau = inf: no PECM adaptation (R only).
+    H (m, n); u (dimensionless, a number or one per filter: shape ...) and U (..., m, m) the IW
+    parameters of R after the previous step; tau = inf: no PECM adaptation (R only).
     Returns (x, P, u, U) after this step. Units: those of the state and of z."""
     m = H.shape[0]
     if n_iter < 1:
         raise ValueError(f"n_iter = {n_iter!r} must be at least 1")
-    u_pre = rho * u
+    u_pre = rho * (u if np.isscalar(u) else np.asarray(u, float))
     U_pre = rho * U
-    if u_pre <= m + 1:
-        raise ValueError(f"rho * u = {u_pre!r} must exceed m + 1 = {m + 1} (IW mean undefined)")
+    if np.any(u_pre <= m + 1):
+        raise ValueError(f"rho * u = {np.min(u_pre)!r} must exceed m + 1 = {m + 1} (IW mean undefined)")
+    uw = u_pre if np.isscalar(u_pre) else u_pre[..., None, None]  # broadcast over (m, m)
     adapt_P = math.isfinite(tau)
     T_pre = tau * P_pred if adapt_P else None
-    Sigma, R = P_pred, U_pre / (u_pre - m - 1)
+    Sigma, R = P_pred, U_pre / (uw - m - 1)
     HT = H.T
     z_pred = x_pred @ HT
     r = z - z_pred
@@ -106,7 +108,7 @@ def vb_update(x_pred: np.ndarray, P_pred: np.ndarray, z: np.ndarray, H: np.ndarr
         U_post = U_pre + H @ P @ HT + e[..., :, None] * e[..., None, :]
         if i == n_iter - 1:
             break  # (u, U) of the last iterate are what the code carries to the next step
-        R = U_post / (u_pre - m)  # U / (u - m - 1) with u = u_pre + 1
+        R = U_post / (uw - m)  # U / (u - m - 1) with u = u_pre + 1
         if adapt_P:
             d = x - x_pred
             Sigma = (T_pre + P + d[..., :, None] * d[..., None, :]) / (tau + 1.0)  # T / (t - n - 1)

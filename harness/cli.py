@@ -45,7 +45,7 @@ def _run(args: argparse.Namespace) -> int:
         except SimulationError as e:
             bar.close()
             where = f"; partial results up to t = {e.result['time'][-1]:.6g} s in {out}" if (
-                e.result is not None and len(e.result)) else ""
+                e.result is not None and len(e.result)) else "; no result file written"
             print(f"error: {e}{where}", file=sys.stderr)
             return 1
     for line in summary(run):

@@ -19,11 +19,19 @@ container reproduces the harness (``harness.cosim``) exactly. Equivalent command
 
     fmucontainer -container SuspensionSystem.csv:0.001 -fmu-directory dist -sequential \\
                  -no-auto-input -no-auto-output -no-auto-link
+
+fmucontainer writes a model description with no units, "Proprietary" as licence and the login
+name as author; ``complete_description`` then gives every variable the unit, range and
+description of the FMU variable it stands for, and the container the FMUs' author, licence and
+version. It cannot give FMU state: fmucontainer 2.0's runtime does not implement
+fmi2GetFMUstate (it returns fmi2Error), so ``canGetAndSetFMUstate`` stays false.
 """
 from __future__ import annotations
 
 import logging
+import zipfile
 from pathlib import Path
+from xml.etree.ElementTree import Element, SubElement, fromstring, indent, tostring
 
 from fmpy import read_model_description
 
@@ -110,4 +118,89 @@ def build_container(dist: Path, step: float = STEP) -> Path:
         raise RuntimeError(f"fmucontainer: {problems[0]}")
     if not out.is_file():
         raise RuntimeError(f"fmucontainer did not write {out.name}")
+    complete_description(out, dist)
     return out
+
+
+def complete_description(container: Path, dist: Path) -> None:
+    """Rewrite ``modelDescription.xml`` of ``container`` (built from the FMUs in ``dist``) with the
+    units, UnitDefinitions, min/max and descriptions of the FMU variables its variables stand for,
+    the FMUs' author, licence and version, and the outputs' dependencies (none, when no FMU has
+    direct feedthrough: a container output then changes only in doStep, like the FMUs' own)."""
+    order = SYSTEMS[ROAD_PLANT_ESTIMATOR][0]
+    mds = {c: read_model_description(str(Path(dist) / f"{c}.fmu"), validate=False) for c in order}
+    fmu_vars = {c: {v.name: v for v in md.modelVariables} for c, md in mds.items()}
+    feeds = {}  # container input or output -> (instance, FMU variable)
+    for rule, from_fmu, from_port, to_fmu, to_port in wiring(dist):
+        if rule == "INPUT":
+            feeds.setdefault(from_port, (to_fmu.removesuffix(".fmu"), to_port))
+        elif rule == "OUTPUT":
+            feeds[to_port] = (from_fmu.removesuffix(".fmu"), from_port)
+    by_lower = {c.lower(): c for c in order}
+
+    def source(name: str):
+        """The FMU variable a container variable stands for, or None (``time``)."""
+        if name in feeds:
+            inst, var = feeds[name]
+        elif "." in name and name.split(".", 1)[0].lower() in by_lower:  # "Inst.var", links "inst.var"
+            inst, var = by_lower[name.split(".", 1)[0].lower()], name.split(".", 1)[1]
+        else:
+            return None
+        return fmu_vars[inst].get(var)
+
+    with zipfile.ZipFile(container) as z:
+        entries = [(info, z.read(info)) for info in z.infolist()]
+    root = fromstring(dict((i.filename, b) for i, b in entries)["modelDescription.xml"])
+    first = mds[order[0]]
+    for attr in ("author", "license", "version"):
+        values = {getattr(md, attr) for md in mds.values()}
+        if len(values) != 1 or None in values:
+            raise RuntimeError(f"the FMUs disagree on {attr}: {sorted(map(str, values))}")
+        root.set(attr, values.pop())
+    root.attrib.pop("copyright", None)  # "See Embedded FMU's copyrights.": they declare none
+    experiment = root.find("DefaultExperiment")
+    if experiment is not None and first.defaultExperiment is not None and first.defaultExperiment.stopTime is None:
+        experiment.attrib.pop("stopTime", None)  # fmucontainer's own default, not the FMUs'
+    used = []
+    svs = list(root.find("ModelVariables"))
+    for sv in svs:
+        typed = sv[0]
+        if sv.get("causality") == "independent":
+            sv.set("description", "simulation time")
+            continue
+        var = source(sv.get("name"))
+        if var is None:
+            continue
+        if var.description and not sv.get("description"):
+            sv.set("description", var.description)
+        if var.unit:
+            typed.set("unit", var.unit)
+            used.append(var.unit)
+        if sv.get("causality") in ("parameter", "input"):
+            for attr in ("min", "max"):
+                if (value := getattr(var, attr)) is not None:
+                    typed.set(attr, value)
+    definitions = {u.name: u for u in first.unitDefinitions}
+    for md in mds.values():
+        definitions.update({u.name: u for u in md.unitDefinitions})
+    if used:
+        units = Element("UnitDefinitions")
+        for name in dict.fromkeys(used):
+            base = definitions[name].baseUnit
+            exps = {k: str(getattr(base, k)) for k in ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
+                    if getattr(base, k, 0)} if base is not None else {}
+            SubElement(SubElement(units, "Unit", name=name), "BaseUnit", exps)
+        root.insert(list(root).index(root.find("CoSimulation")) + 1, units)
+    no_feedthrough = all(u.dependencies == [] for md in mds.values() for u in md.outputs)
+    outputs = root.find("ModelStructure/Outputs")
+    if no_feedthrough and outputs is not None:
+        for unknown in outputs:
+            unknown.set("dependencies", "")
+            unknown.set("dependenciesKind", "")
+    indent(root)
+    xml = b'<?xml version="1.0" encoding="UTF-8"?>\n' + tostring(root) + b"\n"
+    tmp = container.with_name(container.name + ".tmp")
+    with zipfile.ZipFile(tmp, "w") as z:
+        for info, data in entries:
+            z.writestr(info, xml if info.filename == "modelDescription.xml" else data)
+    tmp.replace(container)

@@ -637,10 +637,17 @@ def write_csv(path: Path | str, result: np.ndarray) -> Path:
 
 
 def read_csv(path: Path | str) -> np.ndarray:
-    """Read a CSV written by ``write_csv`` (or FMPy) into a structured array of float64 columns."""
+    """Read a CSV written by ``write_csv`` (or FMPy) into a structured array of float64 columns.
+
+    Raises ``ValueError`` for a file with a header and no rows (what a run refused at
+    initialization used to leave): there is no result in it to read.
+    """
     path = Path(path)
     with open(path) as f:
         names = [n.strip().strip('"') for n in f.readline().rstrip("\n").split(",")]
+        if not any(line.strip() for line in f):
+            raise ValueError(f"{path} holds no result rows (only a header): the run that wrote it failed "
+                             "before its first step, e.g. an FMU refused to initialize; see that run's error")
     data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
     if data.shape[0] == 0:
         raise ValueError(f"{path} holds a header and no rows (a run refused at initialization)")

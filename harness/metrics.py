@@ -17,6 +17,12 @@ HP_ORDER = 4
 WARMUP = 10.0  # s
 
 
+def warmup_for(t: np.ndarray) -> float:
+    """The warm-up (s) a run of times ``t`` (s) is scored after: ``WARMUP``, or half the run if
+    that is shorter."""
+    return min(WARMUP, 0.5 * float(t[-1] - t[0]))
+
+
 def highpass(x: np.ndarray, h: float, cutoff: float = HP_CUTOFF, order: int = HP_ORDER) -> np.ndarray:
     """Zero-phase Butterworth high-pass of a signal sampled every h s."""
     sos = butter(order, cutoff, btype="highpass", fs=1.0 / h, output="sos")

@@ -1,5 +1,6 @@
 """Run a scenario: pick the SSP system from ``dist/``, map the scenario to parameters and inputs,
-co-simulate, write the CSV (also the partial one when an FMU refuses) and summarize."""
+co-simulate, write the CSV (also the partial one when an FMU refuses during the run, none when it
+refuses at initialization) and summarize."""
 from __future__ import annotations
 
 import time as _time
@@ -78,7 +79,8 @@ def run_scenario(scenario: Scenario, dist: Path = DIST, out: Path | None = None,
     """Co-simulate ``scenario`` with the FMUs in ``dist``; write ``out/<scenario>.csv`` if ``out``.
 
     Raises ``ScenarioError`` for a scenario that does not fit the FMUs, and ``SimulationError``
-    when an FMU refuses (after writing the partial record).
+    when an FMU refuses: after writing the record up to the refused step, or, when it refused at
+    initialization, writing no file (and removing the one an earlier run left at that path).
     """
     system = choose_system(scenario, dist)
     with_estimator = "SuspensionEstimator" in system.components
@@ -99,8 +101,11 @@ def run_scenario(scenario: Scenario, dist: Path = DIST, out: Path | None = None,
         with CoSimulation(system, parameters=parameters, inputs=inputs, record=record) as sim:
             result = sim.run(scenario.duration, scenario.step, progress=progress)
     except SimulationError as e:
-        if csv is not None and e.result is not None and len(e.result):  # no header-only CSV
-            write_csv(csv, e.result)
+        if csv is not None:
+            if e.result is not None and len(e.result):
+                write_csv(csv, e.result)
+            else:  # refused at initialization: no result, and none of an earlier run left to mistake for it
+                csv.unlink(missing_ok=True)
         raise
     if csv is not None:
         write_csv(csv, result)
@@ -125,7 +130,7 @@ def summary(run: Run) -> list[str]:
         from . import metrics
 
         t = r["time"]
-        warmup = min(metrics.WARMUP, 0.5 * (t[-1] - t[0]))
+        warmup = metrics.warmup_for(t)
         std = r["SuspensionEstimator.road_height_std"] if "SuspensionEstimator.road_height_std" in r.dtype.names else None
         try:
             s = metrics.road_scores(t, r["SuspensionEstimator.road_height_est"], r["ISORoad.road_height"], std,

@@ -42,8 +42,8 @@ import numpy as np
 @dataclass
 class FilterRecord:
     """A recorded filter run (module doc): x (..., K, n), P (K, n, n) or (..., K, n, n), and the
-    model F, Q, each (n, n) for every step or (K, n, n) per step (F[k], Q[k] take step k-1 to
-    step k; the first is unused)."""
+    model F, Q, each (n, n) for every step, (K, n, n) per step or (..., K, n, n) per run and step
+    (F[k], Q[k] take step k-1 to step k; the first is unused)."""
 
     x: np.ndarray
     P: np.ndarray
@@ -62,8 +62,8 @@ class FilterRecord:
             raise ValueError(f"P has shape {self.P.shape}: (..., {K}, {n}, {n}) expected")
         for name in ("F", "Q"):
             a = getattr(self, name)
-            if a.shape not in ((n, n), (K, n, n)):
-                raise ValueError(f"{name} has shape {a.shape}: ({n}, {n}) or ({K}, {n}, {n}) expected")
+            if a.shape != (n, n) and a.shape[-3:] != (K, n, n):
+                raise ValueError(f"{name} has shape {a.shape}: ({n}, {n}) or (..., {K}, {n}, {n}) expected")
 
 
 def _per_step(a: np.ndarray, K: int) -> np.ndarray:
@@ -75,7 +75,7 @@ def rts_smooth(record: FilterRecord) -> tuple[np.ndarray, np.ndarray]:
     x, P = record.x, record.P
     K = x.shape[-2]
     F, Q = _per_step(record.F, K), _per_step(record.Q, K)
-    F, Q = F[1:], Q[1:]  # F[k] now takes step k to k+1, k = 0 .. K-2
+    F, Q = F[..., 1:, :, :], Q[..., 1:, :, :]  # F[k] now takes step k to k+1, k = 0 .. K-2
     FT = np.swapaxes(F, -1, -2)
     P_prior = F @ P[..., :-1, :, :] @ FT + Q  # P_k+1|k
     G = P[..., :-1, :, :] @ FT @ np.linalg.pinv(P_prior, hermitian=True)

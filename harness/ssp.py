@@ -10,16 +10,21 @@ Systems (component names are the model identifiers, so records read ``ISORoad.ro
 - ``RoadPlantEstimator.ssp``: the above, plus QuarterCar.acc_sprung / acc_unsprung /
   susp_deflection -> SuspensionEstimator inputs of the same names
 
-In both, ``vehicle_speed`` (m/s) is an input connector of the system feeding ISORoad (and
-SuspensionEstimator). The plant's ``sprung_mass`` input is not a connector: SSP runners
-start connections at 0.0, which the plant would refuse; it keeps its start value (410 kg)
-unless the harness drives it.
+In both, ``vehicle_speed`` (m/s) is an input of the system feeding ISORoad (and
+SuspensionEstimator). libcosim (the Open Simulation Platform's SSP loader) accepts no
+connection from a connector of the system itself (it requires ``startElement``, which SSP 1.0
+leaves out for one), so such inputs are not written as connectors and connections: an
+annotation of type ``INPUTS_ANNOTATION`` lists them, and ``read_ssp`` turns them back into the
+harness's system inputs. SSP runners (FMPy's, libcosim) leave those FMU inputs at their start
+values (11.1111 m/s). The plant's ``sprung_mass`` input is not wired either: SSP runners start
+connections at 0.0, which the plant would refuse; it keeps its start value (410 kg) unless the
+harness drives it. The default experiment carries libcosim's fixed step (1 ms).
 """
 from __future__ import annotations
 
 import zipfile
 from pathlib import Path
-from xml.etree.ElementTree import Element, SubElement, indent, register_namespace, tostring
+from xml.etree.ElementTree import Element, SubElement, fromstring, indent, register_namespace, tostring
 
 from fmpy import read_model_description
 
@@ -27,12 +32,20 @@ from .cosim import System
 
 SSD_NS = "http://ssp-standard.org/SSP1/SystemStructureDescription"
 SSC_NS = "http://ssp-standard.org/SSP1/SystemStructureCommon"
+OSP_NS = "http://opensimulationplatform.com/SSP/OSPAnnotations"
+# annotation of the system listing its inputs:
+# <inputs:Inputs><inputs:Input name="..." endElement="..." endConnector="..."/>...</inputs:Inputs>
+INPUTS_ANNOTATION = "org.suspension-estimation-fmu.system-inputs"
+INPUTS_NS = "urn:suspension-estimation-fmu:system-inputs"
+STEP = 1e-3  # s, the fixed step the default experiment asks libcosim for
 
 # SI base-unit exponents of the units the connectors use (as in the FMUs' UnitDefinitions)
 _UNITS = {"m": {"m": 1}, "m/s": {"m": 1, "s": -1}, "m/s2": {"m": 1, "s": -2}, "kg": {"kg": 1}}
 
 register_namespace("ssd", SSD_NS)
 register_namespace("ssc", SSC_NS)
+register_namespace("osp", OSP_NS)
+register_namespace("inputs", INPUTS_NS)
 
 ROAD_PLANT = "RoadPlant"
 ROAD_PLANT_ESTIMATOR = "RoadPlantEstimator"
@@ -85,7 +98,7 @@ def write_ssp(path: Path, name: str, components: dict[str, Path], connections: l
     """Write an SSP with the FMUs ``components`` (instance name -> FMU file) and ``connections``.
 
     A connection is ``("instance.output", "instance.input")``, or ``("input", "instance.input")``
-    for an input of the system (declared as a system connector with the type of the FMU input).
+    for an input of the system (listed in the ``INPUTS_ANNOTATION`` annotation: see the module doc).
     ``outputs`` adds unconnected output connectors (SSP runners record connectors). Checks
     every name and causality against the FMUs' model descriptions.
     """
@@ -103,15 +116,15 @@ def write_ssp(path: Path, name: str, components: dict[str, Path], connections: l
         return v
 
     connectors: dict[str, dict[str, tuple[str, object]]] = {n: {} for n in components}  # name -> var -> kind
-    system_inputs: dict[str, object] = {}
+    system_inputs: list[tuple[str, str]] = []
     for start, end in connections:
         v_end = lookup(end, "input")
-        connectors[end.split(".", 1)[0]][end.split(".", 1)[1]] = ("input", v_end)
         if "." in start:
+            connectors[end.split(".", 1)[0]][end.split(".", 1)[1]] = ("input", v_end)
             v_start = lookup(start, "output")
             connectors[start.split(".", 1)[0]][start.split(".", 1)[1]] = ("output", v_start)
         else:
-            system_inputs.setdefault(start, v_end)
+            system_inputs.append((start, end))
     for inst, names in (outputs or {}).items():
         for var in names:
             connectors[inst].setdefault(var, ("output", lookup(f"{inst}.{var}", "output")))
@@ -121,12 +134,6 @@ def write_ssp(path: Path, name: str, components: dict[str, Path], connections: l
     if description:
         system.set("description", description)
     used_units: list[str] = []
-    if system_inputs:
-        cons = SubElement(system, _q(SSD_NS, "Connectors"))
-        for cname, v in system_inputs.items():
-            c = SubElement(cons, _q(SSD_NS, "Connector"), {"name": cname, "kind": "input"})
-            if unit := _type_element(c, v):
-                used_units.append(unit)
     elements = SubElement(system, _q(SSD_NS, "Elements"))
     for inst, fmu in components.items():
         comp = SubElement(elements, _q(SSD_NS, "Component"), {
@@ -138,13 +145,15 @@ def write_ssp(path: Path, name: str, components: dict[str, Path], connections: l
                 used_units.append(unit)
     conns = SubElement(system, _q(SSD_NS, "Connections"))
     for start, end in connections:
-        attrs = {}
         if "." in start:
-            attrs["startElement"], attrs["startConnector"] = start.split(".", 1)
-        else:
-            attrs["startConnector"] = start
-        attrs["endElement"], attrs["endConnector"] = end.split(".", 1)
-        SubElement(conns, _q(SSD_NS, "Connection"), attrs)
+            attrs = dict(zip(("startElement", "startConnector"), start.split(".", 1)))
+            attrs.update(zip(("endElement", "endConnector"), end.split(".", 1)))
+            SubElement(conns, _q(SSD_NS, "Connection"), attrs)
+    if system_inputs:
+        note = SubElement(SubElement(SubElement(system, _q(SSD_NS, "Annotations")), _q(SSC_NS, "Annotation"),
+                                     {"type": INPUTS_ANNOTATION}), _q(INPUTS_NS, "Inputs"))
+        for start, end in system_inputs:
+            SubElement(note, _q(INPUTS_NS, "Input"), {"name": start, **dict(zip(("endElement", "endConnector"), end.split(".", 1)))})
     units = [u for u in dict.fromkeys(used_units) if u in _UNITS]
     if units:
         ue = SubElement(root, _q(SSD_NS, "Units"))
@@ -154,6 +163,10 @@ def write_ssp(path: Path, name: str, components: dict[str, Path], connections: l
     exp = SubElement(root, _q(SSD_NS, "DefaultExperiment"), {"startTime": "0"})
     if stop_time is not None:
         exp.set("stopTime", repr(float(stop_time)))
+    osp = SubElement(SubElement(exp, _q(SSD_NS, "Annotations")), _q(SSC_NS, "Annotation"),
+                     {"type": "com.opensimulationplatform"})
+    SubElement(SubElement(osp, _q(OSP_NS, "Algorithm")), _q(OSP_NS, "FixedStepAlgorithm"),
+               {"baseStepSize": repr(STEP)})
 
     indent(root)
     xml = b'<?xml version="1.0" encoding="UTF-8"?>\n' + tostring(root) + b"\n"
@@ -214,7 +227,7 @@ def read_ssp(path: Path, fmu_dir: Path | None = None) -> System:
         if not isinstance(el, Component):
             raise ValueError(f"{path.name}: element {el.name!r} is not an FMU component (nested systems are not supported)")
         components[el.name] = el.source
-    connections = []
+    connections = _annotated_inputs(path)
     for c in system.connections:
         if c.endElement is None:
             continue  # to a system output: nothing for the master to do
@@ -225,6 +238,17 @@ def read_ssp(path: Path, fmu_dir: Path | None = None) -> System:
     else:
         files = extract_ssp_fmus(path, components)
     return System(components=files, connections=connections, name=system.name or path.stem)
+
+
+def _annotated_inputs(path: Path) -> list[tuple[str, str]]:
+    """The system inputs an SSP lists in its ``INPUTS_ANNOTATION`` annotation, as connections."""
+    with zipfile.ZipFile(path) as z:
+        root = fromstring(z.read("SystemStructure.ssd"))
+    found = []
+    for note in root.iterfind(f"{_q(SSD_NS, 'System')}/{_q(SSD_NS, 'Annotations')}/{_q(SSC_NS, 'Annotation')}"):
+        if note.get("type") == INPUTS_ANNOTATION:
+            found += [(i.get("name"), f"{i.get('endElement')}.{i.get('endConnector')}") for i in note.iter(_q(INPUTS_NS, "Input"))]
+    return found
 
 
 _EXTRACTED: dict[tuple[Path, float], Path] = {}

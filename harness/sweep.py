@@ -81,6 +81,7 @@ from __future__ import annotations
 
 import gc
 import hashlib
+import importlib.util
 import itertools
 import json
 import math
@@ -118,6 +119,15 @@ _TYPES = {"key": "string", "run": "string", "estimator": "string", "parameters":
 
 class SweepError(ValueError):
     """A sweep file that cannot be used; the message is one line naming the file and key."""
+
+
+def require_extra(*modules: str) -> None:
+    """Raise ``SweepError`` naming the optional extra ``sweep`` when one of ``modules`` (Dask's
+    ``distributed``, ``pyarrow``: what only the sweeps need) is not installed."""
+    missing = [m for m in modules if importlib.util.find_spec(m) is None]
+    if missing:
+        raise SweepError(f"{' and '.join(missing)} {'is' if len(missing) == 1 else 'are'} not installed: the "
+                         "sweeps need the optional extra 'sweep' (pip install -e \".[sweep]\")")
 
 
 # --------------------------------------------------------------------------------------------------
@@ -399,6 +409,7 @@ def run_specs(specs: Sequence[RunSpec], workers: int = 2, scheduler: str | None 
     ``runner.run_all``) on Dask: a LocalCluster of ``workers`` processes or the cluster at
     ``scheduler``; each worker reuses its CoSimulations. What ``python -m harness paper --dask``
     runs."""
+    require_extra("distributed")
     from distributed import Client
     from tqdm import tqdm
 
@@ -669,6 +680,7 @@ def run_sweep(sweep: Sweep, dist: Path | str, out: Path | str | None = None, wor
     progress bar)."""
     from tqdm import tqdm
 
+    require_extra("pyarrow", *(("distributed",) if workers > 0 or scheduler else ()))
     sweep.check(dist)
     out = Path(out or sweep.output or Path("results") / "sweeps" / sweep.name)
     if workers < 0:

@@ -14,16 +14,34 @@ The nominal values switch at the true stretch boundaries: this is the paper's "w
 classification" experiment, in which the authors' script uses the true class (an oracle, no
 classifier runs). The VB filter restarts its R prior at the new nominal there, as their code does.
 
+The rows marked "classifier" replace the oracle by ``estimators.response_class`` in the loop: a
+linear one-vs-one SVM on the log mean square of each measurement over blocks of 0.5 s (50
+samples), trained by ``paper_classifier`` on runs of the same scenario with all five classes
+(A-E, in two orders, 5 s each) and a training seed of its own. The class of a block is in force
+from the step after it; before the first block ends the nominal is the first stretch's (the paper
+gives the initial road class). Per run, wherever the class changes, the nominal Q and R change
+and the VB filters restart their R prior at the new nominal (as at the oracle's boundaries).
+
 Rows (ARMSE per stretch, paper 004 eq. 42: sqrt of the mean over the stretch's steps of the
 Monte-Carlo mean of the squared error summed over the two positions, resp. the two velocities):
 
 - KFTCM: KF with the true Q_k, R_k (causal);
 - KFNCM: KF with the nominal Q, R (causal);
+- RSAKF: the residual-based adaptive KF the paper compares with (its ref. to Mohamed and Schwarz,
+  J. Geodesy 1999, covariance matching): nominal Q, and R estimated from the post-fit residuals
+  e_j = z_j - H x_j|j of a sliding window of ``RS_WINDOW`` steps, R_k = mean(e e') + H P_k-1|k-1 H'
+  (the paper gives neither the formula nor the window: 55 steps is the VB's R memory
+  1 / (1 - rho)); the nominal R until the window is full (causal);
+- VBAKF-R: the VB-AKF adapting R only (tau = inf, ``estimators.vb_akf``; Sarkka and Nummenmaa
+  2009 with the IW form and forgetting rho of Huang et al. 2018), same prior, rho, N, restarts
+  (causal);
 - VB forward: ``estimators.vb_akf`` with the nominal prior, rho = 1 - e^-4, tau = 0.8, N = 6,
   dof 5 (causal);
 - VB + RTS: the VB posteriors smoothed by ``harness.smoothing.rts_smooth`` with the nominal model
   (the paper's "proposed" filter, non-causal over the whole 15 s record);
-- KFNCM + RTS, KFTCM + RTS: the same smoother on those filters' records (each with its own Q).
+- KFNCM + RTS, KFTCM + RTS: the same smoother on those filters' records (each with its own Q);
+- KFNCM / VB forward / VB + RTS, "classifier": the same filters with the nominal scheduled by
+  the in-loop classifier instead of the oracle.
 
 The KF covariances do not depend on the data, so one covariance recursion serves all runs; the
 VB filter and the smoother run on stacks of runs (``vb_update`` and ``rts_smooth`` broadcast).
@@ -42,6 +60,7 @@ import numpy as np
 
 from estimators.kalman import LinearKF
 from estimators.model import DiscreteModel
+from estimators.response_class import block_features, predict
 from estimators.vb_akf import DOF, N_ITER, RHO, TAU, VBAKF, vb_update
 from harness.smoothing import FilterRecord, rts_smooth
 from plant import iso8608
@@ -59,7 +78,11 @@ CLASS_R = {"A": (0.0001, 0.0001, 0.0015), "B": (0.0004, 0.0004, 0.006),
            "C": (0.0016, 0.0016, 0.024), "D": (0.0064, 0.0064, 0.096),
            "E": (0.0256, 0.0256, 0.384)}
 STRETCHES = ("E", "C", "A")
-ROWS = ("KFTCM", "KFNCM", "VB forward", "VB + RTS", "KFNCM + RTS", "KFTCM + RTS")
+ROWS = ("KFTCM", "KFNCM", "RSAKF", "VBAKF-R", "VB forward", "VB + RTS", "KFNCM + RTS", "KFTCM + RTS",
+        "KFNCM, classifier", "VB forward, classifier", "VB + RTS, classifier")
+RS_WINDOW = 55  # steps of residuals of the RSAKF (module doc)
+CLASS_BLOCK = 50  # samples per block of the in-loop classifier (0.5 s)
+CLASSIFIER_SEED = 2004  # training runs of the in-loop classifier
 
 
 def paper_model(v: Vehicle = PAPER_VEHICLE, h: float = TS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -145,26 +168,117 @@ def kalman_runs(F: np.ndarray, Qd: np.ndarray, H: np.ndarray, R: np.ndarray,
     return x, P
 
 
-def vb_runs(F: np.ndarray, Qd: np.ndarray, H: np.ndarray, scn: Scenario, Y: np.ndarray,
+def _diag(R: np.ndarray) -> np.ndarray:
+    return R[..., :, None] * np.eye(R.shape[-1])
+
+
+def vb_runs(F: np.ndarray, Qd: np.ndarray, H: np.ndarray, R_nominal: np.ndarray, Y: np.ndarray,
             n_iter: int = N_ITER, rho: float = RHO, tau: float = TAU,
             dof: float = DOF) -> tuple[np.ndarray, np.ndarray]:
-    """VB-AKF on every run of Y (runs, K, m) with the nominal model; the R prior restarts at the
-    nominal of the next stretch after each stretch's last step (as the authors' code does).
-    Returns x (runs, K, n), P (runs, K, n, n)."""
+    """VB-AKF on every run of Y (runs, K, m) with the nominal model: Qd (K, n, n) or per run
+    (runs, K, n, n) as in ``kalman_runs``, R_nominal (K, m) or per run (runs, K, m) the diagonal
+    of the nominal R. Wherever a run's nominal R changes between steps k and k + 1 (a new road
+    class), its R prior restarts at the new nominal after step k (as the authors' code does at the
+    stretch boundaries). Returns x (runs, K, n), P (runs, K, n, n)."""
     runs, K, m = Y.shape
     n = F.shape[0]
+    Rn = np.broadcast_to(R_nominal, (runs, K, m))
+    Qr = Qd if Qd.ndim == 4 else Qd[None]
+    change = np.any(Rn[:, 1:] != Rn[:, :-1], axis=-1)  # (runs, K - 1): restart after step k
     x = np.zeros((runs, K, n))
     P = np.zeros((runs, K, n, n))
-    restart = {s - 1 for s in scn.starts[1:]}  # after the last step of a stretch
-    u, U = dof, np.broadcast_to((dof - m - 1) * np.diag(scn.R_nominal[0]), (runs, m, m))
+    u, U = np.full(runs, float(dof)), (dof - m - 1) * _diag(Rn[:, 0])
     for k in range(1, K):
         xp = x[:, k - 1] @ F.T
-        Pp = F @ P[:, k - 1] @ F.T + Qd[k]
+        Pp = F @ P[:, k - 1] @ F.T + Qr[:, k]
         x[:, k], P[:, k], u, U = vb_update(xp, Pp, Y[:, k], H, u, U, rho, tau, n_iter)
-        if k in restart:
-            u = dof
-            U = np.broadcast_to((dof - m - 1) * np.diag(scn.R_nominal[k + 1]), (runs, m, m))
+        if k < K - 1 and change[:, k].any():
+            c = change[:, k]
+            u = np.where(c, float(dof), u)
+            U = np.where(c[:, None, None], (dof - m - 1) * _diag(Rn[:, k + 1]), U)
     return x, P
+
+
+def rsakf_runs(F: np.ndarray, Qd: np.ndarray, H: np.ndarray, R_nominal: np.ndarray, Y: np.ndarray,
+               window: int = RS_WINDOW) -> tuple[np.ndarray, np.ndarray]:
+    """Residual-based adaptive KF (RSAKF, module doc) on every run of Y (runs, K, m), from
+    x_0 = 0, P_0 = 0; Qd and R_nominal as in ``vb_runs``. ``window`` = 0: the KF with the
+    (per run) nominal R. Returns x (runs, K, n), P (runs, K, n, n)."""
+    runs, K, m = Y.shape
+    n = F.shape[0]
+    Rn = _diag(np.broadcast_to(R_nominal, (runs, K, m)))
+    Qr = Qd if Qd.ndim == 4 else Qd[None]
+    x = np.zeros((runs, K, n))
+    P = np.zeros((runs, K, n, n))
+    ee = np.zeros((runs, K, m, m))  # e_k e_k' of the post-fit residuals
+    acc = np.zeros((runs, m, m))  # their sum over the last ``window`` steps
+    for k in range(1, K):
+        if window and k > window:  # residuals of steps k - window .. k - 1
+            R = acc / window + H @ P[:, k - 1] @ H.T
+        else:
+            R = Rn[:, k]
+        xp = x[:, k - 1] @ F.T
+        Pp = F @ P[:, k - 1] @ F.T + Qr[:, k]
+        S = H @ Pp @ H.T + R
+        G = np.swapaxes(np.linalg.solve(S, H @ Pp), -1, -2)
+        x[:, k] = xp + (G @ (Y[:, k] - xp @ H.T)[..., None])[..., 0]
+        P[:, k] = Pp - G @ H @ Pp
+        if window:
+            e = Y[:, k] - x[:, k] @ H.T
+            ee[:, k] = e[..., :, None] * e[..., None, :]
+            acc += ee[:, k] - (ee[:, k - window] if k > window else 0.0)
+    return x, P
+
+
+def _nominal_q_into_step(q: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Process noise covariance INTO step k, B B' q_k-1 (q (..., K) per step; [0] unused)."""
+    qk = np.concatenate([np.zeros(q.shape[:-1] + (1,)), q[..., :-1]], axis=-1)
+    return qk[..., None, None] * np.outer(B, B)
+
+
+def paper_classifier(seed: int = CLASSIFIER_SEED, runs: int = 40, block: int = CLASS_BLOCK) -> dict:
+    """The in-loop road classifier of the paper's scenario (module doc): a model dict for
+    ``estimators.response_class``, trained with scikit-learn on ``runs`` runs of each of the
+    stretch orders A..E and E..A (5 s each), every block of ``block`` samples inside a stretch
+    except each stretch's first (the response of the previous class still rings in it)."""
+    from estimators.response_class_train import train
+
+    F, B, H = paper_model()
+    rng = np.random.default_rng(seed)
+    feats, labels = [], []
+    for order in ("ABCDE", "EDCBA"):
+        scn = paper_scenario(tuple(order), duration=5.0 * len(order))
+        _, Y = simulate(scn, F, B, H, runs, rng)
+        for j, (start, s) in enumerate(zip(scn.starts, scn.scored)):
+            first = s.start + (block if j else 0)
+            f = block_features(Y[:, first:s.stop], 1.0, block, speed_power=0.0)
+            feats.append(f.reshape(-1, 3))
+            labels += [iso8608.CLASSES.index(order[j]) + 1] * (f.shape[0] * f.shape[1])
+    return train(np.concatenate(feats), np.array(labels),
+                 signals=("a_s", "z_s - z_u", "z_u - z_r"), window=block * TS, speed_power=0.0)
+
+
+def classified_schedule(model: dict, Y: np.ndarray, initial: str,
+                        block: int = CLASS_BLOCK) -> np.ndarray:
+    """Class letter in force at every step of every run (runs, K) with the classifier in the
+    loop: the class of block b (steps 1 + b * block .. (b + 1) * block) from the step after it on,
+    ``initial`` before (what ``ResponseClassifier`` gives sample by sample)."""
+    runs, K, _ = Y.shape
+    pred = predict(model, block_features(Y[:, 1:], 1.0, block, speed_power=0.0))  # (runs, blocks)
+    letters = np.array(list(iso8608.CLASSES))[pred - 1]
+    b = (np.arange(K) - 1) // block - 1  # last complete block before step k
+    out = np.full((runs, K), initial)
+    ok = b >= 0
+    out[:, ok] = letters[:, np.minimum(b[ok], letters.shape[1] - 1)]
+    return out
+
+
+def nominal_of(classes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Nominal q (..., K) and R diagonal (..., K, 3) of class letters (..., K) (paper Table 1)."""
+    q = np.vectorize(CLASS_Q.get, otypes=[float])(classes)
+    R = np.stack([np.vectorize(lambda c, i=i: CLASS_R[c][i], otypes=[float])(classes)
+                  for i in range(3)], axis=-1)
+    return q, R
 
 
 def squared_errors(x: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -178,13 +292,16 @@ def armse_table(runs: int, seed: int = 1, chunk: int = 250, n_iter: int = N_ITER
     """ARMSE (position m, velocity m/s) of every row on every stretch over ``runs`` Monte-Carlo
     runs (module doc), simulated ``chunk`` at a time. Returns {"rows": {row: {"pos": [..],
     "vel": [..]}}, "se_change_pct": the standard error of each row's change against KFNCM in %
-    from batch means over the chunks (None with fewer than 4 chunks), "runs", "seconds", ...}."""
+    from batch means over the chunks (None with fewer than 4 chunks), "classifier_accuracy": the
+    fraction of each stretch's scored steps on which the in-loop class is the true one, "runs",
+    "seconds", ...}."""
     F, B, H = paper_model()
     scn = paper_scenario()
     # the process noise INTO step k is B w_k-1: Q[k] = B B' Q_k-1 (Q[0] unused)
-    BB = np.outer(B, B)
-    Q_nom = np.concatenate([[0.0], scn.Q_nominal[:-1]])[:, None, None] * BB
-    Q_true = np.concatenate([[0.0], scn.Q_true[:-1]])[:, None, None] * BB
+    Q_nom = _nominal_q_into_step(scn.Q_nominal, B)
+    Q_true = _nominal_q_into_step(scn.Q_true, B)
+    model = paper_classifier()
+    hits = np.zeros(len(scn.scored))  # steps of each stretch on which the classifier is right
     chunks = []  # per chunk: {row: (sum of squared position errors (K,), velocity (K,))}, runs
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
@@ -194,12 +311,22 @@ def armse_table(runs: int, seed: int = 1, chunk: int = 250, n_iter: int = N_ITER
         X, Y = simulate(scn, F, B, H, b, rng)
         xt, Pt = kalman_runs(F, Q_true, H, scn.R_true, Y)
         xn, Pn = kalman_runs(F, Q_nom, H, scn.R_nominal, Y)
-        xv, Pv = vb_runs(F, Q_nom, H, scn, Y, n_iter=n_iter)
+        xv, Pv = vb_runs(F, Q_nom, H, scn.R_nominal, Y, n_iter=n_iter)
+        xr = rsakf_runs(F, Q_nom, H, scn.R_nominal, Y)[0]
+        xvr = vb_runs(F, Q_nom, H, scn.R_nominal, Y, n_iter=n_iter, tau=math.inf)[0]
+        cls = classified_schedule(model, Y, scn.classes[0])
+        hits += [np.sum(cls[:, s] == scn.classes[s.start]) for s in scn.scored]
+        q_c, R_c = nominal_of(cls)
+        Q_c = _nominal_q_into_step(q_c, B)
+        xnc = rsakf_runs(F, Q_c, H, R_c, Y, window=0)[0]
+        xvc, Pvc = vb_runs(F, Q_c, H, R_c, Y, n_iter=n_iter)
         est = {
-            "KFTCM": xt, "KFNCM": xn, "VB forward": xv,
+            "KFTCM": xt, "KFNCM": xn, "RSAKF": xr, "VBAKF-R": xvr, "VB forward": xv,
             "VB + RTS": rts_smooth(FilterRecord(xv, Pv, F, Q_nom))[0],
             "KFNCM + RTS": rts_smooth(FilterRecord(xn, Pn, F, Q_nom))[0],
             "KFTCM + RTS": rts_smooth(FilterRecord(xt, Pt, F, Q_true))[0],
+            "KFNCM, classifier": xnc, "VB forward, classifier": xvc,
+            "VB + RTS, classifier": rts_smooth(FilterRecord(xvc, Pvc, F, Q_c))[0],
         }
         chunks.append(({r: squared_errors(x, X) for r, x in est.items()}, b))
         done += b
@@ -224,7 +351,9 @@ def armse_table(runs: int, seed: int = 1, chunk: int = 250, n_iter: int = N_ITER
         se = {r: {key: [float(np.std([100 * (p[r][key][j] / p["KFNCM"][key][j] - 1) for p in per],
                                      ddof=1) / math.sqrt(len(per))) for j in range(len(scn.scored))]
                   for key in ("pos", "vel")} for r in ROWS}
+    class_acc = [float(h / (runs * (s.stop - s.start))) for h, s in zip(hits, scn.scored)]
     return {"rows": table, "se_change_pct": se, "runs": runs, "seed": seed, "n_iter": n_iter,
+            "classifier_accuracy": class_acc, "rs_window": RS_WINDOW, "class_block": CLASS_BLOCK,
             "chunk": chunk, "stretches": list(STRETCHES), "seconds": time.perf_counter() - t0}
 
 

@@ -13,7 +13,7 @@ estimator can be given the same maps.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from .vehicle import DEFAULT_VEHICLE
 
@@ -186,10 +186,14 @@ FORCE_RANGES: dict[str, tuple[float, float, bool, bool]] = {
 # Defaults. Air spring: a static absolute pressure of 6 bar at the default sprung mass (passenger-
 # car air springs run at about 5..10 bar static), adiabatic exponent 1.4 (the ride frequencies are
 # too fast for heat exchange with the walls), area and volume then follow from carrying the default
-# sprung mass with the linear default k_s at the static point; a 16 bar levelling supply.
+# sprung mass with the linear default k_s at the static point; a 16 bar levelling supply. Area and
+# volume are rounded to the 6 significant digits the written contract shows (docs/fmu-interface.md),
+# which leaves the slope at the static point 2e-6 off 20000 N/m.
 AIR_STATIC_PRESSURE = 6e5  # Pa, absolute, at the default sprung mass
-DEFAULT_AIR_SPRING = AirSpring.matching(DEFAULT_VEHICLE.m_s, DEFAULT_VEHICLE.k_s, AIR_STATIC_PRESSURE,
-                                        air_kappa=1.4, air_pressure_max=16e5)
+_MATCHING = AirSpring.matching(DEFAULT_VEHICLE.m_s, DEFAULT_VEHICLE.k_s, AIR_STATIC_PRESSURE,
+                               air_kappa=1.4, air_pressure_max=16e5)
+DEFAULT_AIR_SPRING = replace(_MATCHING, air_area=float(f"{_MATCHING.air_area:.6g}"),
+                             air_volume=float(f"{_MATCHING.air_volume:.6g}"))
 # Damper: a 3:1 rebound-to-compression ratio with the mean low-speed slope equal to the linear
 # default c_s, digressive (high-speed slopes 40 % of the low-speed ones) beyond a knee at 0.3 m/s.
 DEFAULT_DAMPER = PiecewiseDamper(

@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+# optional sample data beside the checkout (tests that use it skip without it)
 SHARED = ROOT.parent / "shared"
 
 

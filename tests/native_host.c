@@ -1,6 +1,6 @@
 /* A minimal FMI 2.0 co-simulation master in C: a non-Python host for the tests.
 
-     native_host UNZIPDIR MODEL_ID GUID STEPS STEP_SIZE [r:VR=VALUE ...] [o:VR ...] [maps]
+     native_host UNZIPDIR MODEL_ID GUID STEPS STEP_SIZE [r:VR=VALUE ...] [o:VR ...] [maps] [exit|dlclose] [grid]
 
    Loads UNZIPDIR/binaries/linux64/MODEL_ID.so, sets every r:VR=VALUE (Real) before initialization
    and before every step, steps STEPS times by STEP_SIZE (s) from 0 and prints, after the
@@ -11,7 +11,10 @@
 
    It leaves with _exit after freeing the instance: a process that loaded a pythonfmu binary
    aborts in its exit handlers ("free(): corrupted unsorted chunks", PythonFMU issue 229), after
-   every result has been written. */
+   every result has been written. With "exit" it returns from main like an ordinary host (exit
+   handlers run), with "dlclose" it also unloads the FMU's library first (as fmusim does): how
+   often that aborts is measured in docs/masters.md. With "grid" the step size is computed as
+   (k+1)*h - k*h, as fmusim and libcosim do (it differs from h by rounding on most steps). */
 #include <dlfcn.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -77,7 +80,7 @@ static void print_python_maps(void) {
 
 int main(int argc, char **argv) {
     if (argc < 6) {
-        fprintf(stderr, "usage: native_host UNZIPDIR MODEL_ID GUID STEPS STEP_SIZE [r:VR=VALUE] [o:VR] [maps]\n");
+        fprintf(stderr, "usage: native_host UNZIPDIR MODEL_ID GUID STEPS STEP_SIZE [r:VR=VALUE] [o:VR] [maps] [exit|dlclose] [grid]\n");
         return 1;
     }
     const char *dir = argv[1], *id = argv[2], *guid = argv[3];
@@ -86,7 +89,7 @@ int main(int argc, char **argv) {
     fmi2ValueReference in_vr[64], out_vr[256];
     double in_val[64], out_val[256];
     size_t n_in = 0, n_out = 0;
-    int maps = 0;
+    int maps = 0, leave_mode = 0, grid = 0; /* leave_mode 0 _exit, 1 return from main, 2 dlclose */
     for (int i = 6; i < argc; i++) {
         if (strncmp(argv[i], "r:", 2) == 0 && n_in < 64) {
             in_vr[n_in] = (fmi2ValueReference)strtoul(argv[i] + 2, NULL, 10);
@@ -95,6 +98,12 @@ int main(int argc, char **argv) {
             out_vr[n_out++] = (fmi2ValueReference)strtoul(argv[i] + 2, NULL, 10);
         } else if (strcmp(argv[i], "maps") == 0) {
             maps = 1;
+        } else if (strcmp(argv[i], "exit") == 0) {
+            leave_mode = 1;
+        } else if (strcmp(argv[i], "dlclose") == 0) {
+            leave_mode = 2;
+        } else if (strcmp(argv[i], "grid") == 0) {
+            grid = 1;
         }
     }
 
@@ -130,7 +139,7 @@ int main(int argc, char **argv) {
     for (long k = 0; k <= steps; k++) {
         if (k > 0) {
             if (n_in) check(set_real(c, in_vr, n_in, in_val), "fmi2SetReal");
-            check(do_step(c, (k - 1) * h, h, 1), "fmi2DoStep");
+            check(do_step(c, (k - 1) * h, grid ? k * h - (k - 1) * h : h, 1), "fmi2DoStep");
         }
         if (n_out) check(get_real(c, out_vr, n_out, out_val), "fmi2GetReal");
         printf("%.17g", k * h);
@@ -141,5 +150,7 @@ int main(int argc, char **argv) {
     check(terminate(c), "fmi2Terminate");
     free_instance(c);
     fflush(stderr);
+    if (leave_mode == 2) dlclose(lib);
+    if (leave_mode) return 0;
     _exit(0);
 }

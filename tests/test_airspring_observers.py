@@ -21,9 +21,9 @@ GD = iso8608.class_psd_n0(3)  # ISO C
 NL = NonlinearModel(V, DEFAULT_AIR_SPRING, DEFAULT_DAMPER, SPEED, GD)
 
 
-def ride(h: float, t_end: float, seed: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The default nonlinear plant on ISO C at 40 km/h: times, measurements, true road."""
-    road = SyntheticRoad(GD, seed=seed)
+def ride(h: float, t_end: float, seed: int = 1, gd_n0: float = GD) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The default nonlinear plant on an ISO road (default C) at 40 km/h: times, measurements, true road."""
+    road = SyntheticRoad(gd_n0, seed=seed)
     n = int(round(t_end / h))
     z = np.array([road.height((k + 1) * h * SPEED) for k in range(n)]) - road.height(0.0)
     plant = NonlinearQuarterCar(V, DEFAULT_AIR_SPRING, DEFAULT_DAMPER, noise=NOISE, noise_seed=seed + 1)

@@ -1,6 +1,8 @@
-"""build.py and the model descriptions: validation, the written contract, units, rebuilds, names."""
+"""build.py and the model descriptions: validation, the written contract (docs/fmu-interface.md, generated
+from the contract by ``python build.py --docs``), units, rebuilds, names."""
 from __future__ import annotations
 
+import importlib.util
 import re
 import subprocess
 import sys
@@ -12,10 +14,21 @@ import pytest
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
-from conftest import ROOT, SHARED
+from conftest import ROOT
 from fmu_driver import Driven
 
 NAMES = ["ISORoad", "QuarterCar", "SuspensionEstimator"]
+INTERFACE_DOC = ROOT / "docs" / "fmu-interface.md"
+
+
+def _load_build_script():
+    spec = importlib.util.spec_from_file_location("build_script", ROOT / "build.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+build_script = _load_build_script()
 
 
 def built(dist: Path) -> list[str]:
@@ -34,30 +47,31 @@ def test_fmpy_validate_finds_no_problem(dist, name):
 
 
 def contract_rows(md_text: str) -> dict[str, dict[str, dict]]:
-    """{model identifier: {variable: {causality, type, unit, start}}} from fmu-interface.md."""
+    """{model identifier: {variable: {causality, type, unit, start}}} from docs/fmu-interface.md."""
     out: dict[str, dict[str, dict]] = {}
     current = None
     for line in md_text.splitlines():
         if m := re.match(r"## `(\w+)\.fmu`", line):
             current = out.setdefault(m.group(1), {})
             continue
-        cells = [c.strip() for c in line.strip().strip("|").split("|")]
-        if current is None or len(cells) != 6 or not cells[0].startswith("`"):
+        cells = [c.strip() for c in line.strip().strip("|").split(" | ")]
+        if current is None or len(cells) != 7 or not cells[0].startswith("`"):
             continue
-        names = re.findall(r"`(\w+)`", cells[0])
-        units = [u.strip() for u in cells[3].split(",")]
-        starts = [s.strip() for s in cells[4].split(",")] if cells[4] else []
-        for i, name in enumerate(names):
-            current[name] = {
-                "causality": cells[1], "type": cells[2],
-                "unit": units[i] if len(units) == len(names) else (units[0] if len(units) == 1 else None),
-                "start": starts[i] if len(starts) == len(names) else (starts[0] if len(starts) == 1 else None),
-            }
+        current[cells[0].strip("`")] = {"causality": cells[1], "type": cells[2], "unit": cells[3], "start": cells[4]}
     return out
 
 
-def test_contract_document_is_found():
-    rows = contract_rows((SHARED / "fmu-interface.md").read_text())
+def test_interface_doc_and_readme_table_are_up_to_date():
+    fresh = "run `python build.py --docs` and commit the result"
+    assert INTERFACE_DOC.is_file(), f"{INTERFACE_DOC.relative_to(ROOT)} is missing: {fresh}"
+    assert INTERFACE_DOC.read_text() == build_script.interface_doc(), \
+        f"{INTERFACE_DOC.relative_to(ROOT)} is stale (contract.py changed): {fresh}"
+    readme = (ROOT / "README.md").read_text()
+    assert build_script.readme_with_table(readme) == readme, f"the FMU table in README.md is stale: {fresh}"
+
+
+def test_interface_doc_lists_every_variable():
+    rows = contract_rows(INTERFACE_DOC.read_text())
     assert set(rows) == set(NAMES) and all(len(v) > 8 for v in rows.values())
 
 
@@ -65,7 +79,7 @@ def test_contract_document_is_found():
 def test_model_description_follows_the_written_contract(dist, name):
     if name not in built(dist):
         pytest.skip(f"{name}.fmu is not part of this build")
-    rows = contract_rows((SHARED / "fmu-interface.md").read_text())[name]
+    rows = contract_rows(INTERFACE_DOC.read_text())[name]
     md = read_model_description(str(dist / f"{name}.fmu"))
     assert md.coSimulation.modelIdentifier == name
     variables = {v.name: v for v in md.modelVariables}
@@ -79,12 +93,12 @@ def test_model_description_follows_the_written_contract(dist, name):
         var = variables[vname]
         assert var.causality == row["causality"], vname
         assert var.type == row["type"], vname
-        if row["unit"] not in (None, "–", "-"):
+        if row["unit"] != "–":
             assert var.unit == row["unit"], vname
         if var.causality == "parameter":
             assert var.variability in ("fixed", "tunable"), vname
         start = row["start"]
-        if start not in (None, ""):
+        if start:
             if var.type == "Real":
                 assert float(var.start) == pytest.approx(float(start)), vname
             elif var.type == "Integer":
@@ -95,14 +109,42 @@ def test_model_description_follows_the_written_contract(dist, name):
                 assert (var.start or "") == start.strip('"'), vname
 
 
-def test_rebuild_is_idempotent(dist, tmp_path):
-    for _ in range(2):
-        proc = subprocess.run([sys.executable, str(ROOT / "build.py"), "--dist", str(tmp_path), "ISORoad"],
-                              capture_output=True, text=True)
-        assert proc.returncode == 0, proc.stderr
-    with zipfile.ZipFile(tmp_path / "ISORoad.fmu") as a, zipfile.ZipFile(dist / "ISORoad.fmu") as b:
-        assert a.read("modelDescription.xml") == b.read("modelDescription.xml")
+def _build(*args) -> subprocess.CompletedProcess:
+    proc = subprocess.run([sys.executable, str(ROOT / "build.py"), *map(str, args)], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    return proc
+
+
+def test_rebuild_is_idempotent_and_only_when_something_changed(dist, tmp_path):
+    _build("--dist", tmp_path, "ISORoad")
+    fmu = tmp_path / "ISORoad.fmu"
+    first = fmu.stat().st_mtime_ns
+    assert "ISORoad.fmu is up to date" in _build("--dist", tmp_path, "ISORoad").stdout
+    assert fmu.stat().st_mtime_ns == first
+    with zipfile.ZipFile(fmu) as a, zipfile.ZipFile(dist / "ISORoad.fmu") as b:
+        undated = [re.sub(rb'generationDateAndTime="[^"]*"', b"", z.read("modelDescription.xml")) for z in (a, b)]
+        assert undated[0] == undated[1]  # the GUID included
         assert sorted(a.namelist()) == sorted(b.namelist())
+    # a stamp that no longer matches the sources (as after an edit) rebuilds, and so does --force
+    stamps = tmp_path / build_script.STAMPS
+    stamps.write_text(stamps.read_text().replace('"ISORoad": "', '"ISORoad": "0'))
+    assert "built" in _build("--dist", tmp_path, "ISORoad").stdout
+    assert "built" in _build("--dist", tmp_path, "--force", "ISORoad").stdout
+
+
+def test_source_hash_follows_content_names_and_options(tmp_path):
+    pkg = tmp_path / "pkg"
+    (pkg / "__pycache__").mkdir(parents=True)
+    (pkg / "a.py").write_text("x = 1\n")
+    h = build_script.source_hash([pkg], {"o": 1})
+    (pkg / "__pycache__" / "a.cpython-311.pyc").write_bytes(b"compiled")
+    assert build_script.source_hash([pkg], {"o": 1}) == h
+    assert build_script.source_hash([pkg], {"o": 2}) != h
+    (pkg / "a.py").write_text("x = 2\n")
+    edited = build_script.source_hash([pkg], {"o": 1})
+    assert edited != h
+    (pkg / "a.py").rename(pkg / "b.py")
+    assert build_script.source_hash([pkg], {"o": 1}) not in (h, edited)
 
 
 def test_failing_build_exits_non_zero_with_the_reason(tmp_path):

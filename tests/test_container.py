@@ -178,12 +178,12 @@ def native_host(tmp_path_factory) -> Path:
 
 
 def _run_native(host: Path, dist: Path, tmp_path: Path, env: dict[str, str], steps: int, inputs: dict[str, float],
-                outputs: list[str]) -> subprocess.CompletedProcess:
+                outputs: list[str], options: tuple[str, ...] = ("maps",)) -> subprocess.CompletedProcess:
     md = read_model_description(str(_container(dist)))
     vr = {v.name: v.valueReference for v in md.modelVariables}
     unzipped = extract(str(_container(dist)), unzipdir=str(tmp_path / "container"))
     args = [str(host), unzipped, CONTAINER, md.guid, str(steps), repr(H)]
-    args += [f"r:{vr[k]}={v!r}" for k, v in inputs.items()] + [f"o:{vr[n]}" for n in outputs] + ["maps"]
+    args += [f"r:{vr[k]}={v!r}" for k, v in inputs.items()] + [f"o:{vr[n]}" for n in outputs] + list(options)
     return subprocess.run(args, capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120)
 
 
@@ -220,6 +220,40 @@ def test_native_host_without_libpython_cannot_load_the_fmus(dist, native_host, t
     assert proc.returncode == 1
     assert "undefined symbol: _Py" in proc.stderr
     assert "fmi2Instantiate failed" in proc.stderr
+
+
+@pytest.mark.parametrize("leave", ["exit", "dlclose"])
+def test_native_host_that_exits_normally_keeps_its_output_and_status(dist, native_host, tmp_path, leave):
+    """A host that returns from main (after unloading the library, with "dlclose") runs its exit
+    handlers, where pythonfmu 0.7.0's wrapper corrupts the heap (PythonFMU #229). With tools/fmu-env
+    (SUSPENSION_FMU_QUICK_EXIT=1) the process ends with the host's status and every line it printed."""
+    env = {**_without_python_env(), **_fmu_env()}
+    assert env["SUSPENSION_FMU_QUICK_EXIT"] == "1" and env["OPENBLAS_NUM_THREADS"] == "1"
+    steps = 20
+    proc = _run_native(native_host, dist, tmp_path, env, steps, {"vehicle_speed": 11.1111},
+                       ["QuarterCar.z_s"], (leave,))
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert len(proc.stdout.splitlines()) == steps + 1 and proc.stdout.endswith("\n")
+    # a host that fails after loading the FMUs leaves with its own status and message
+    proc = _run_native(native_host, dist, tmp_path, env, steps, {"vehicle_speed": -5.0}, ["QuarterCar.z_s"], (leave,))
+    assert proc.returncode == 1, proc.stderr[-2000:]
+    assert "vehicle_speed = -5.0 is outside the allowed range [0, 100]" in proc.stderr
+    assert "native_host: fmi2DoStep returned status" in proc.stderr
+
+
+def test_python_host_that_exits_normally_keeps_its_status(dist):
+    """The guard keeps a Python host's (FMPy's) exit status and output when it leaves with sys.exit
+    instead of os._exit (such a host did not abort in these runs, with or without it)."""
+    code = ("import sys; sys.path[:0] = [sys.argv[1], sys.argv[2]]\n"
+            "from fmu_driver import Driven\n"
+            "d = Driven(sys.argv[3] + '/SuspensionEstimator.fmu', {})\n"
+            "d.step(1e-3, acc_sprung=0.1); print('stepped', d.get('sprung_mass_est')); d.close()\n"
+            "sys.exit(3)\n")
+    env = {**os.environ, "SUSPENSION_FMU_QUICK_EXIT": "1"}
+    proc = subprocess.run([sys.executable, "-c", code, str(ROOT), str(ROOT / "tests"), str(dist)],
+                          capture_output=True, text=True, env=env, timeout=120)
+    assert proc.returncode == 3, proc.stderr[-2000:]
+    assert proc.stdout.startswith("stepped ")
 
 
 # -- build errors -----------------------------------------------------------------------------------

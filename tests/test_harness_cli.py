@@ -171,8 +171,22 @@ def test_cli_fmu_refusal_is_one_line_and_keeps_the_partial_csv(dist, tmp_path):
     assert r["time"][-1] == pytest.approx(0.1) and len(r) == 101
 
 
-def test_cli_refusal_at_initialization(dist, tmp_path):
+def test_cli_refusal_at_initialization_writes_no_result(dist, tmp_path):
+    out = tmp_path / "out"
+    good = scenario_file(tmp_path, ROAD_PLANT + SHORT)
+    assert harness("run", str(good), "--dist", str(dist), "--out", str(out), "--no-plots").returncode == 0
+    assert (out / "s.csv").is_file()
+    # the same scenario refused: the earlier run's file must not pass for this one's
     p = harness("run", str(scenario_file(tmp_path, ROAD_PLANT + SHORT + "k_t = 0.0\n")), "--dist", str(dist),
-                "--out", str(tmp_path / "out"))
+                "--out", str(out))
     assert p.returncode == 1 and p.stderr.count("\n") == 1, p.stderr
     assert p.stderr.startswith("error: QuarterCar refused to initialize at t = 0 s: ") and "k_t" in p.stderr
+    assert "no result file written" in p.stderr
+    assert list(out.iterdir()) == []
+
+
+def test_read_csv_names_a_result_without_rows(tmp_path):
+    f = tmp_path / "refused.csv"
+    f.write_text('"time","QuarterCar.z_s"\n')
+    with pytest.raises(ValueError, match="holds no result rows .* refused to initialize"):
+        read_csv(f)

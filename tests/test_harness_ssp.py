@@ -43,9 +43,10 @@ def test_ssp_round_trip(dist, name):
     ssd = read_ssd(str(path))  # validates SystemStructure.ssd against the SSP 1.0 schema
     assert ssd.name == name and ssd.system.name == name
     assert [(c.name, c.source) for c in ssd.system.elements] == [(c, f"resources/{c}.fmu") for c in order]
-    assert [(c.name, c.kind) for c in ssd.system.connectors] == [("vehicle_speed", "input")]
+    # libcosim takes no connection from a system connector: the system input is an annotation
+    assert ssd.system.connectors == []
     got = {(c.startElement, c.startConnector, c.endElement, c.endConnector) for c in ssd.system.connections}
-    want = {(s.split(".")[0] if "." in s else None, s.split(".")[-1], *e.split(".")) for s, e in connections}
+    want = {(*s.split("."), *e.split(".")) for s, e in connections if "." in s}
     assert got == want
     with zipfile.ZipFile(path) as z:  # the FMUs inside are the built ones
         for c in order:
@@ -68,21 +69,18 @@ def _plant_outputs(system) -> list[str]:
 
 
 def _lagged_road_and_plant(dist, system, ssp, n):
-    """The harness's road at t_0..t_(n-1), and the harness's plant driven alone with the road the SSP
-    runner gives it ([0, r(t_0), r(t_1), ...]); its rows 1..n are the SSP runner's rows 0..n-1."""
+    """The harness's road at t_1..t_n, and the harness's plant driven alone with the road the SSP
+    runner gives it ([0, r(t_1), r(t_2), ...]); its rows 1..n are the SSP runner's rows 0..n-1."""
     with CoSimulation(system, inputs={"vehicle_speed": V}, record=["ISORoad.road_height", "ISORoad.road_velocity",
                                                                    "ISORoad.distance"]) as sim:
         gs = sim.run(n * H, H)
     plant = System({"QuarterCar": system.components["QuarterCar"]})
-    lagged_road = np.r_[0.0, gs["ISORoad.road_height"][:n - 1]]
+    lagged_road = np.r_[0.0, gs["ISORoad.road_height"][1:n]]
     with CoSimulation(plant, inputs={"QuarterCar.road_height": lagged_road}, record=_plant_outputs(system)) as sim:
         alone = sim.run(n * H, H)
-    for name in ("ISORoad.road_height", "ISORoad.distance"):
-        assert np.array_equal(ssp[name], gs[name][:n]), name
-    # the velocity is the slope times the speed the road had in its step: 0 in the runner's first
-    assert ssp["ISORoad.road_velocity"][0] == 0.0
-    assert np.array_equal(ssp["ISORoad.road_velocity"][1:], gs["ISORoad.road_velocity"][1:n])
-    assert np.array_equal(ssp["QuarterCar.road_height"], gs["ISORoad.road_height"][:n])  # fed at the next step
+    for name in ("ISORoad.road_height", "ISORoad.road_velocity", "ISORoad.distance"):
+        assert np.array_equal(ssp[name], gs[name][1:n + 1]), name
+    assert np.array_equal(ssp["QuarterCar.road_height"], gs["ISORoad.road_height"][1:n + 1])  # fed at the next step
     for name in _plant_outputs(system):
         if name in ssp.dtype.names:
             _assert_same(ssp[name], alone[name][1:], name)
@@ -92,16 +90,15 @@ def _lagged_road_and_plant(dist, system, ssp, n):
 
 def test_fmpy_ssp_runner_matches_the_harness_up_to_its_lag(dist):
     """FMPy's runner steps all FMUs, then moves every connection: each connection lags one step,
-    connections start at 0.0, rows carry the step's start time. So (rows k, n steps):
+    connections start at 0.0, rows carry the step's start time. The SSP wires no system input
+    (see harness.ssp), so vehicle_speed keeps its start value V. So (rows k, n steps):
 
-    - ISORoad gets the speed one step late and starts at speed 0: its row k (after k+1 steps)
-      has travelled k steps, which is the harness's road at t_k exactly;
-    - QuarterCar sees the road two steps late, after a 0.0 first: it is the harness's plant driven
-      alone with road inputs [0, r(t_0), r(t_1), ...], its row k the harness's row k+1.
+    - ISORoad runs at V from the start: its row k (after k+1 steps) is the harness's road at t_(k+1);
+    - QuarterCar sees the road one step late, after a 0.0 first: it is the harness's plant driven
+      alone with road inputs [0, r(t_1), r(t_2), ...], its row k the harness's row k+1.
     """
     n = 500
-    ssp = simulate_ssp(str(dist / f"{ROAD_PLANT}.ssp"), stop_time=n * H, step_size=H,
-                       input={"vehicle_speed": lambda t: V})
+    ssp = simulate_ssp(str(dist / f"{ROAD_PLANT}.ssp"), stop_time=n * H, step_size=H)
     assert len(ssp) == n and ssp["time"][0] == 0.0
     assert np.allclose(ssp["time"], H * np.arange(n), rtol=0, atol=1e-12)
     system = read_ssp(dist / f"{ROAD_PLANT}.ssp", fmu_dir=dist)
@@ -110,8 +107,7 @@ def test_fmpy_ssp_runner_matches_the_harness_up_to_its_lag(dist):
     # and the Gauss-Seidel plant, which starts at rest on the road's first height where the SSP
     # runner's starts at 0.0, is that response without the lead-in: close once it has decayed
     m = 3000
-    ssp = simulate_ssp(str(dist / f"{ROAD_PLANT}.ssp"), stop_time=m * H, step_size=H,
-                       input={"vehicle_speed": lambda t: V})
+    ssp = simulate_ssp(str(dist / f"{ROAD_PLANT}.ssp"), stop_time=m * H, step_size=H)
     with CoSimulation(system, inputs={"vehicle_speed": V}, record=["QuarterCar.z_s"]) as sim:
         z = sim.run(m * H, H)["QuarterCar.z_s"]
     late = slice(m - 1000, m - 1)
@@ -120,21 +116,20 @@ def test_fmpy_ssp_runner_matches_the_harness_up_to_its_lag(dist):
 
 def test_fmpy_ssp_runner_matches_the_harness_up_to_its_lag_with_the_estimator(dist):
     """RoadPlantEstimator.ssp in FMPy's runner: road and plant as above; SuspensionEstimator,
-    initialized at its start values, gets at step k the speed and measurements one step late
-    (0.0 at step 0): it is the estimator driven alone with vehicle_speed [0, V, V, ...] and the
-    measurements [0, y_1, ..., y_(n-1)] of the harness's plant of the lagged road (rows 1..),
-    and its outputs after step k are the runner's row k."""
+    initialized at its start values, keeps vehicle_speed V and gets at step k the measurements
+    one step late (0.0 at step 0): it is the estimator driven alone with the measurements
+    [0, y_1, ..., y_(n-1)] of the harness's plant of the lagged road (rows 1..), and its
+    outputs after step k are the runner's row k."""
     if ROAD_PLANT_ESTIMATOR not in _systems(dist):
         pytest.skip("SuspensionEstimator.fmu is not built yet")
     n = 1000
-    ssp = simulate_ssp(str(dist / f"{ROAD_PLANT_ESTIMATOR}.ssp"), stop_time=n * H, step_size=H,
-                       input={"vehicle_speed": lambda t: V})
+    ssp = simulate_ssp(str(dist / f"{ROAD_PLANT_ESTIMATOR}.ssp"), stop_time=n * H, step_size=H)
     assert len(ssp) == n
     system = read_ssp(dist / f"{ROAD_PLANT_ESTIMATOR}.ssp", fmu_dir=dist)
     _, alone = _lagged_road_and_plant(dist, system, ssp, n)
 
     measured = ("acc_sprung", "acc_unsprung", "susp_deflection")
-    speed = np.r_[0.0, np.full(n - 1, V)]
+    speed = np.full(n, V)
     inputs = {m: np.r_[0.0, alone[f"QuarterCar.{m}"][1:n]] for m in measured}
     element = {e.name: e for e in read_ssd(str(dist / f"{ROAD_PLANT_ESTIMATOR}.ssp")).system.elements}
     outputs = [c.name for c in element["SuspensionEstimator"].connectors if c.kind == "output"]

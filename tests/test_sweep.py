@@ -163,3 +163,18 @@ def test_paper_runs_on_dask_reuse_the_workers_fmus_with_the_same_numbers(dist, c
         for k, v in scores.items():
             assert got[3]["estimators"][inst][k] == v or (math.isnan(v) and math.isnan(got[3]["estimators"][inst][k]))
     assert set(got[3]["timing"]["do_step_us"]) == {e.instance for e in runner.ESTIMATORS} | {"ISORoad", "QuarterCar"}
+
+
+@pytest.mark.parametrize("argv, missing", [
+    (["sweep", "small_grid", "--workers", "0"], "pyarrow"),
+    (["sweep", "small_grid", "--workers", "2"], "distributed"),
+    (["paper", "--dask", "--seeds", "1"], "distributed"),
+])
+def test_without_the_sweep_extra_the_commands_name_it(argv, missing, dist, tmp_path, monkeypatch, capsys):
+    from harness.cli import main
+
+    monkeypatch.setitem(sys.modules, missing, None)  # as if not installed
+    assert main([*argv, "--dist", str(dist), "--out", str(tmp_path / "out"), "-q"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{missing} is not installed" in err and '".[sweep]"' in err, err
+    assert not (tmp_path / "out").exists()

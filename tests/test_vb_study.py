@@ -43,7 +43,7 @@ def test_batched_filters_equal_the_single_run_core():
     scn = paper_scenario()
     X, Y = simulate(scn, F, B, H, 2, np.random.default_rng(7))
     Qn = np.concatenate([[0.0], scn.Q_nominal[:-1]])[:, None, None] * np.outer(B, B)
-    xv, Pv = vb_runs(F, Qn, H, scn, Y)
+    xv, Pv = vb_runs(F, Qn, H, scn.R_nominal, Y)
     xk, Pk = kalman_runs(F, Qn, H, scn.R_nominal, Y)
     vb = VBAKF(F, Qn[1], H, np.diag(scn.R_nominal[0]))
     kf = VBAKF(F, Qn[1], H, np.diag(scn.R_nominal[0]), rho=1.0, tau=np.inf, dof=1e15)
@@ -55,3 +55,79 @@ def test_batched_filters_equal_the_single_run_core():
     np.testing.assert_allclose(kf.x, xk[1, 500], rtol=0, atol=1e-9 * np.max(np.abs(xk[1])))
     # the VB estimate is not the KF's (it adapts)
     assert np.max(np.abs(xv[1, 1:501] - xk[1, 1:501])) > 1e-3 * np.max(np.abs(xk[1]))
+
+
+def test_rsakf_against_filterpy_with_a_residual_window():
+    """rsakf_runs against filterpy's KalmanFilter whose R is set before every update from a
+    window of post-fit residuals (Mohamed and Schwarz), one run; window 0 is the nominal KF."""
+    from collections import deque
+
+    from filterpy.kalman import KalmanFilter
+
+    from harness.vb_study import rsakf_runs
+
+    F, B, H = paper_model()
+    scn = paper_scenario()
+    X, Y = simulate(scn, F, B, H, 2, np.random.default_rng(3))
+    Qn = np.concatenate([[0.0], scn.Q_nominal[:-1]])[:, None, None] * np.outer(B, B)
+    L = 20
+    xr, Pr = rsakf_runs(F, Qn, H, scn.R_nominal, Y, window=L)
+    kf = KalmanFilter(4, 3)
+    kf.F, kf.H, kf.x, kf.P = F, H, np.zeros(4), np.zeros((4, 4))
+    res = deque(maxlen=L)
+    for k in range(1, 700):
+        kf.Q = Qn[k]
+        R = (sum(np.outer(e, e) for e in res) / L + H @ kf.P @ H.T) if len(res) == L else np.diag(scn.R_nominal[k])
+        kf.predict()
+        kf.update(Y[1, k], R=R)
+        res.append(Y[1, k] - H @ kf.x)
+        np.testing.assert_allclose(kf.x, xr[1, k], rtol=0, atol=1e-9 * np.max(np.abs(xr[1])))
+    x0 = rsakf_runs(F, Qn, H, scn.R_nominal, Y, window=0)[0]
+    np.testing.assert_allclose(x0, kalman_runs(F, Qn, H, scn.R_nominal, Y)[0], rtol=0, atol=1e-12)
+    assert np.max(np.abs(xr[1, 100:] - x0[1, 100:])) > 1e-3 * np.max(np.abs(x0[1]))
+
+
+def test_per_run_schedule_equals_the_core_with_restarts():
+    """vb_runs with a nominal per run and step: the single-run VBAKF with set_model and
+    reset_noise where the run's class changes."""
+    from harness.vb_study import _nominal_q_into_step, nominal_of
+
+    F, B, H = paper_model()
+    scn = paper_scenario()
+    _, Y = simulate(scn, F, B, H, 2, np.random.default_rng(4))
+    cls = np.array([list("E" * 300 + "D" * 200 + "C" * 1001), list("E" * 600 + "A" * 901)])
+    q, R = nominal_of(cls)
+    Qd = _nominal_q_into_step(q, B)
+    xv, Pv = vb_runs(F, Qd, H, R, Y)
+    for i in range(2):
+        vb = VBAKF(F, Qd[i, 1], H, np.diag(R[i, 0]))
+        for k in range(1, 900):
+            vb.set_model(Q=Qd[i, k])
+            vb.step(Y[i, k])
+            if cls[i, k + 1] != cls[i, k]:
+                vb.reset_noise(np.diag(R[i, k + 1]))
+        np.testing.assert_allclose(vb.x, xv[i, 899], rtol=0, atol=1e-9 * np.max(np.abs(xv[i])))
+        np.testing.assert_allclose(vb.P, Pv[i, 899], rtol=1e-7, atol=1e-15)
+
+
+def test_in_loop_classifier_on_held_out_runs():
+    """The in-loop schedule equals the streaming classifier; off the first block after a switch
+    it is right on most blocks of held-out runs (benchmarks/road_class_accuracy.py: 99 %)."""
+    from estimators.response_class import ResponseClassifier
+    from harness.vb_study import CLASS_BLOCK, TS, classified_schedule, paper_classifier
+    from plant import iso8608
+
+    model = paper_classifier(runs=20)
+    F, B, H = paper_model()
+    scn = paper_scenario()
+    _, Y = simulate(scn, F, B, H, 20, np.random.default_rng(77))
+    cls = classified_schedule(model, Y, "E")
+    clf = ResponseClassifier(model, initial=5)
+    for k in range(1, 1501):
+        assert cls[3, k] == iso8608.class_name(clf.road_class)  # in force at step k
+        clf.update(Y[3, k], 1.0, TS)
+    truth = np.array(scn.classes)
+    settled = np.ones(1501, bool)
+    for s in scn.starts:
+        settled[s:s + 2 * CLASS_BLOCK + 1] = False  # latency: the block straddling and the next
+    assert np.mean(cls[:, settled] == truth[settled]) > 0.9

@@ -1,4 +1,5 @@
-"""The variable contract of the three FMUs (see fmu-interface.md): one table per FMU.
+"""The variable contract of the three FMUs: one table per FMU (docs/fmu-interface.md is generated
+from it by ``python build.py --docs``).
 
 Every FMU class registers exactly these variables, the model description gets its units and
 descriptions from here, and the FMUs validate their parameters against ``allowed``.
@@ -239,7 +240,11 @@ def allowed_text(var: Var) -> str:
         return "{" + ", ".join(f"{k} = {v}" for k, v in a.items()) + "}"
     low, high, *incl = a
     lo_in, hi_in = (incl + [True, True])[:2]
-    return f"{'[' if lo_in else '('}{low:g}, {high:g}{']' if hi_in else ')'}"
+    return f"{'[' if lo_in else '('}{_number(low)}, {_number(high)}{']' if hi_in else ')'}"
+
+
+def _number(x: float) -> str:
+    return str(x) if isinstance(x, int) else f"{x:g}"
 
 
 def problem(var: Var, value: object) -> str | None:
@@ -262,3 +267,15 @@ def problem(var: Var, value: object) -> str | None:
     if isinstance(value, float) and not math.isfinite(value):
         return f"{var.name} = {value!r} is not a finite number (allowed range {allowed_text(var)})"
     return f"{var.name} = {value!r} is outside the allowed range {allowed_text(var)}"
+
+
+# Inputs each output depends on at a communication point (FMI 2.0 ModelStructure/Outputs
+# ``dependencies``; an output not listed depends on none). Every output is computed by doStep
+# from the inputs held over the step, so an input set at a communication point reaches no output
+# before the next doStep: no FMU has direct feedthrough, and a master can close a loop through
+# them without an algebraic loop. tests/test_model_structure.py checks this through the built FMUs.
+DEPENDENCIES: dict[str, dict[str, tuple[str, ...]]] = {
+    "ISORoad": {},
+    "QuarterCar": {},
+    "SuspensionEstimator": {},
+}

@@ -8,15 +8,20 @@ with the reason logged again; a bad input is refused the same way at the step.
 from __future__ import annotations
 
 import base64
+import datetime
 import math
+import os
 import pickle
 import uuid
 from xml.etree.ElementTree import Element, SubElement, tostring
 
-from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
+from pythonfmu import Boolean, DefaultExperiment, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
-from .contract import CONTRACTS, UNITS, Var, problem
+from . import quick_exit
+from .contract import CONTRACTS, DEPENDENCIES, UNITS, Var, problem
+
+quick_exit.install()  # opt-in (SUSPENSION_FMU_QUICK_EXIT=1): see quick_exit.py
 
 _TYPES = {"Real": Real, "Integer": Integer, "Boolean": Boolean, "String": String}
 _ZERO = {"Real": 0.0, "Integer": 0, "Boolean": False, "String": ""}
@@ -32,6 +37,8 @@ class ContractSlave(Fmi2Slave):
 
     author = "suspension-estimation FMU project"
     license = "MIT"
+    # the step the FMUs are made for and tested at (s); any other step works
+    default_experiment = DefaultExperiment(start_time=0.0, step_size=1e-3)
     # attributes beyond the contract's variables that make up the FMU state (the cores)
     state_attributes: tuple[str, ...] = ()
 
@@ -166,15 +173,23 @@ class ContractSlave(Fmi2Slave):
 
     # -- model description ------------------------------------------------------------------
     def to_xml(self, model_options=dict()) -> Element:
-        """pythonfmu's description plus units, UnitDefinitions, InitialUnknowns, a content GUID."""
+        """pythonfmu's description plus units, UnitDefinitions, min/max from the contract's ranges,
+        the outputs' dependencies, InitialUnknowns, the project version, a content GUID and the
+        generation date (``SOURCE_DATE_EPOCH`` if set, else now)."""
         root = super().to_xml(model_options)
         by_name = {v.name: v for v in self.contract}
+        svs = list(root.find("ModelVariables"))
+        index = {sv.get("name"): str(i) for i, sv in enumerate(svs, start=1)}
         used = []
-        for sv in root.find("ModelVariables"):
+        for sv in svs:
             var = by_name[sv.get("name")]
+            typed = sv.find(var.type)
             if var.unit is not None:
-                sv.find("Real").set("unit", var.unit)
+                typed.set("unit", var.unit)
                 used.append(var.unit)
+            if var.causality in ("parameter", "input") and (bounds := _min_max(var)) is not None:
+                typed.set("min", bounds[0])
+                typed.set("max", bounds[1])
         units = Element("UnitDefinitions")
         for name in dict.fromkeys(used):
             SubElement(SubElement(units, "Unit", name=name), "BaseUnit",
@@ -183,13 +198,53 @@ class ContractSlave(Fmi2Slave):
         structure = root.find("ModelStructure")
         outputs = structure.find("Outputs")
         if outputs is not None:
+            depends = DEPENDENCIES[type(self).__name__]
+            for unknown in outputs:
+                inputs = depends.get(svs[int(unknown.get("index")) - 1].get("name"), ())
+                unknown.set("dependencies", " ".join(index[n] for n in inputs))
+                unknown.set("dependenciesKind", " ".join("dependent" for _ in inputs))
             initial = SubElement(structure, "InitialUnknowns")
             for unknown in outputs:
                 SubElement(initial, "Unknown", index=unknown.get("index"))
-        # The GUID follows the content, so an unchanged model rebuilds with the same GUID.
+        if (version := _project_version()) is not None:
+            root.set("version", version)
+        # The GUID follows the content (the date excluded), so an unchanged model rebuilds with the same GUID.
         root.set("guid", "")
         root.set("generationDateAndTime", "")
         content = tostring(root)
         root.set("guid", "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, content.decode())) + "}")
-        del root.attrib["generationDateAndTime"]
+        root.set("generationDateAndTime", _generation_date())
         return root
+
+
+def _min_max(var: Var) -> tuple[str, str] | None:
+    """FMI ``min``/``max`` of a variable's allowed range (FMI bounds are inclusive: an open end of
+    the range is declared at its limit and still refused by the FMU), or None."""
+    a = var.allowed
+    if isinstance(a, dict):
+        low, high = min(a), max(a)
+    elif isinstance(a, tuple):
+        low, high = a[:2]
+    else:
+        return None
+    if var.type == "Integer":
+        return str(int(low)), str(int(high))
+    return repr(float(low)), repr(float(high))
+
+
+def _project_version() -> str | None:
+    """The version of the installed project (pyproject.toml), None when it is not installed."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("suspension-estimation-fmu")
+    except PackageNotFoundError:
+        return None
+
+
+def _generation_date() -> str:
+    """``generationDateAndTime``: ``SOURCE_DATE_EPOCH`` (s, for reproducible builds) if set, else now (UTC)."""
+    epoch = os.environ.get("SOURCE_DATE_EPOCH")
+    t = (datetime.datetime.fromtimestamp(int(epoch), datetime.timezone.utc) if epoch
+         else datetime.datetime.now(datetime.timezone.utc))
+    return t.strftime("%Y-%m-%dT%H:%M:%SZ")

@@ -1,0 +1,122 @@
+"""Accuracy of the response-feature road classifier on independent test roads, as confusion matrices.
+
+    .venv/bin/python benchmarks/road_class_accuracy.py [--runs N] [--duration S] [--seed S]
+
+Our quarter car: the shipped model (estimators/data/response_class_iso.json) on ``--runs`` runs
+(classes A-E in turn, ``--duration`` s each after 1 s of settling, speed uniform 10-30 m/s) on
+road seeds the training never saw (201, 202) with a test seed of their own, in four cases:
+
+1. roughness at the class value, vehicles drawn over the whole spread (c_s +-30 %, k_s +-15 %,
+   k_t +-10 %, m_u +-15 %, m_s 230-590 kg);
+2. the same roads and vehicles, roughness log-uniform over the class band (factor 2 either side);
+3. roughness at the class value, the nominal vehicle only;
+4. roughness at the class value, the extreme vehicles only (every parameter at one end of its
+   range: the 32 corners, in turn).
+
+Paper 004's scenario: the block-by-block accuracy of ``harness.vb_study.paper_classifier`` on
+its E / C / A scenario (other seed), every block and without the first block after a switch.
+
+Rows are the true class, columns the predicted one. Exits non-zero with a one-line reason on bad
+arguments.
+"""
+from __future__ import annotations
+
+import argparse
+import itertools
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import numpy as np  # noqa: E402
+
+from estimators import response_class_train as T  # noqa: E402
+from estimators.response_class import block_features, load_model, predict  # noqa: E402
+from plant import iso8608  # noqa: E402
+from plant.vehicle import DEFAULT_VEHICLE  # noqa: E402
+
+TEST_ROAD_SEEDS = (201, 202)
+
+
+def confusion(truth: np.ndarray, pred: np.ndarray, classes) -> str:
+    names = [iso8608.class_name(c) for c in classes]
+    lines = ["| true \\ predicted | " + " | ".join(names) + " | accuracy |", "|---" * (len(names) + 2) + "|"]
+    for c, name in zip(classes, names):
+        if not np.any(truth == c):
+            continue
+        row = [int(np.sum((truth == c) & (pred == d))) for d in classes]
+        lines.append(f"| {name} | " + " | ".join(map(str, row)) + f" | {row[classes.index(c)] / max(sum(row), 1):.1%} |")
+    return "\n".join(lines)
+
+
+def _corners():
+    lo_hi = {k: (getattr(DEFAULT_VEHICLE, k) * a, getattr(DEFAULT_VEHICLE, k) * b)
+             for k, (a, b) in T.VEHICLE_SPREAD.items() if k != "m_s_kg"}
+    lo_hi["m_s"] = T.VEHICLE_SPREAD["m_s_kg"]
+    names = list(lo_hi)
+    return [DEFAULT_VEHICLE.with_(**{n: lo_hi[n][e] for n, e in zip(names, ends)})
+            for ends in itertools.product((0, 1), repeat=len(names))]
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--runs", type=int, default=200, help="test runs per case (default 200)")
+    ap.add_argument("--duration", type=float, default=8.0, help="s per run after settling (default 8)")
+    ap.add_argument("--seed", type=int, default=99, help="seed of the test draws (default 99)")
+    a = ap.parse_args(argv)
+    if a.runs < 5 or not 0 < a.duration <= 12:
+        print("road_class_accuracy: need --runs >= 5 and 0 < --duration <= 12 s", file=sys.stderr)
+        return 2
+    model = load_model()
+    classes = list(model["classes"])
+    blocks = int(round(model["window"] / T.H))
+    print(f"## Our quarter car: shipped model, blocks of {model['window']:g} s, {a.runs} runs of "
+          f"{a.duration:g} s per case, road seeds {TEST_ROAD_SEEDS}, test seed {a.seed}\n")
+    corners = _corners()
+    cases = {
+        "1. class values, vehicles over the spread": dict(spread=False),
+        "2. roughness over the class band, vehicles over the spread": dict(spread=True),
+        "3. class values, nominal vehicle": dict(spread=False, vehicles=lambda i: DEFAULT_VEHICLE),
+        "4. class values, the 32 extreme vehicles": dict(spread=False, vehicles=lambda i: corners[i % 32]),
+    }
+    for title, kw in cases.items():
+        runs = T.simulate(a.runs, a.duration, a.seed, road_seeds=TEST_ROAD_SEEDS, **kw)
+        f = block_features(runs.Y, runs.speed[:, None], blocks)
+        pred = predict(model, f).ravel()
+        truth = np.repeat(runs.classes, f.shape[1])
+        v = np.repeat(runs.speed, f.shape[1])
+        by_speed = " / ".join(f"{np.mean(pred[m] == truth[m]):.1%}" for m in
+                              (v < 50 / 3, (v >= 50 / 3) & (v < 70 / 3), v >= 70 / 3))
+        print(f"### {title}: {np.mean(pred == truth):.1%} of {len(truth)} blocks "
+              f"(10-16.7 / 16.7-23.3 / 23.3-30 m/s: {by_speed})\n")
+        if kw["spread"]:
+            off = np.repeat(np.abs(np.log2(runs.gd / [iso8608.class_psd_n0(c) for c in runs.classes])),
+                            f.shape[1])
+            print(f"Within a factor sqrt(2) of the class value: {np.mean(pred[off < 0.5] == truth[off < 0.5]):.1%} "
+                  f"of {np.sum(off < 0.5)} blocks; farther out: {np.mean(pred[off >= 0.5] == truth[off >= 0.5]):.1%} "
+                  f"of {np.sum(off >= 0.5)} blocks\n")
+        print(confusion(truth, pred, classes) + "\n")
+
+    from harness import vb_study as V
+
+    pm = V.paper_classifier()
+    F, B, H = V.paper_model()
+    scn = V.paper_scenario()
+    _, Y = V.simulate(scn, F, B, H, a.runs, np.random.default_rng(a.seed))
+    pred = predict(pm, block_features(Y[:, 1:], 1.0, V.CLASS_BLOCK, speed_power=0.0))
+    first = 1 + V.CLASS_BLOCK * np.arange(pred.shape[1])
+    truth = np.array([iso8608.CLASSES.index(scn.classes[k]) + 1 for k in first])
+    after_switch = np.isin(first, scn.starts[1:])
+    t, p = np.broadcast_to(truth, pred.shape), pred
+    print(f"## Paper 004's scenario (E / C / A): in-loop classifier, blocks of "
+          f"{V.CLASS_BLOCK * V.TS:g} s, {a.runs} runs (seed {a.seed})\n")
+    print(f"All blocks: {np.mean(p == t):.1%}; without the first block after a switch: "
+          f"{np.mean(p[:, ~after_switch] == t[:, ~after_switch]):.1%}; the first block after a "
+          f"switch: {np.mean(p[:, after_switch] == t[:, after_switch]):.1%}\n")
+    print(confusion(t[:, ~after_switch].ravel(), p[:, ~after_switch].ravel(), list(pm["classes"])))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

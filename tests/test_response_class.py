@@ -1,0 +1,113 @@
+"""estimators.response_class: the streaming classifier equals its batch form and scikit-learn;
+the training simulator is the plant; the shipped model classifies held-out roads; a rebuild
+writes the model byte for byte; the model ships inside the estimator FMU."""
+from __future__ import annotations
+
+import zipfile
+
+import numpy as np
+import pytest
+
+from estimators import response_class_train as T
+from estimators.response_class import (ISO_MODEL, MODEL_DIR, ResponseClassifier, block_features,
+                                       check_model, load_model, predict)
+from plant import iso8608
+from plant.quarter_car import QuarterCar, SensorNoise
+from plant.road import SyntheticRoad
+
+
+def test_training_simulator_is_the_plant():
+    """One noise-free run of ``simulate`` against QuarterCar driven sample by sample on the
+    SyntheticRoad of that roughness (built directly, not scaled)."""
+    runs = T.simulate(2, 1.0, seed=3, road_seeds=(11,), settle=0.0, noise=SensorNoise(0, 0, 0))
+    i = 1  # class B, second 400 m stretch of road 11
+    road = SyntheticRoad(runs.gd[i], seed=11)
+    car = QuarterCar(runs.vehicles[i], SensorNoise(0, 0, 0))
+    s0, v, h = T.STRETCH, runs.speed[i], T.H
+    car.settle(road.height(s0 + v * h))
+    measured = []
+    for k in range(runs.Y.shape[1]):
+        car.step(road.height(s0 + v * (k + 1) * h), h)
+        measured.append(car.measured)
+    measured = np.array(measured)
+    for j in range(3):
+        np.testing.assert_allclose(runs.Y[i, :, j], measured[:, j], rtol=0,
+                                   atol=1e-9 * np.max(np.abs(measured[:, j])))
+
+
+def test_streaming_equals_batch_and_scikit_learn():
+    model = load_model()
+    runs = T.simulate(5, 4.0, seed=5, road_seeds=(12,))
+    n = int(round(model["window"] / T.H))
+    f = block_features(runs.Y, runs.speed[:, None], n)
+    batch = predict(model, f)
+    for i in range(5):
+        clf = ResponseClassifier(model, initial=0)
+        seen = []
+        for k, y in enumerate(runs.Y[i]):
+            c = clf.update(y, runs.speed[i], T.H)
+            if (k + 1) % n == 0:
+                seen.append(c)
+        assert seen == batch[i].tolist()
+        assert clf.blocks == f.shape[1]
+    # the evaluator of the stored weights against the fitted SVC it was taken from
+    from sklearn.svm import SVC
+
+    g = (f.reshape(-1, 3) - model["mean"]) / np.array(model["scale"])
+    rng = np.random.default_rng(0)
+    y = rng.integers(1, 4, len(g))
+    svm = SVC(kernel="linear").fit(g, y)
+    assert np.all(predict(T.train(f.reshape(-1, 3), y), f.reshape(-1, 3)) == svm.predict(g))
+
+
+def test_shipped_model_classifies_held_out_roads():
+    """Road seeds and draws the training never saw, roughness at the class value, vehicles over
+    the whole spread, 10-30 m/s: the bound is loose (benchmarks/road_class_accuracy.py measures
+    98-99 % on 1000+ blocks)."""
+    model = load_model()
+    runs = T.simulate(40, 4.0, seed=321, road_seeds=(301,), spread=False)
+    f = block_features(runs.Y, runs.speed[:, None], int(round(model["window"] / T.H)))
+    acc = np.mean(predict(model, f) == runs.classes[:, None])
+    assert acc >= 0.9, acc
+    # the feature is needed: with the speed normalisation removed, it falls apart
+    wrong = dict(model, speed_power=0.0)
+    assert np.mean(predict(wrong, f + np.log(runs.speed)[:, None, None]) == runs.classes[:, None]) < acc
+
+
+def test_rebuild_writes_the_committed_model_byte_for_byte():
+    committed = (MODEL_DIR / ISO_MODEL).read_bytes()
+    assert T.dumps(T.train_iso_model()).encode() == committed
+
+
+def test_scaled_road_is_the_road_of_that_roughness():
+    """simulate scales one road per seed by sqrt(Gd(n0)): what SyntheticRoad builds."""
+    gd = iso8608.class_psd_n0(4) * 1.7
+    a, b = SyntheticRoad(iso8608.GD_N0_A, seed=13), SyntheticRoad(gd, seed=13)
+    s = np.linspace(0, 500, 97)
+    np.testing.assert_allclose([b.height(x) for x in s],
+                               np.sqrt(gd / iso8608.GD_N0_A) * np.array([a.height(x) for x in s]),
+                               rtol=1e-12, atol=1e-15)
+
+
+def test_bad_models_and_samples_are_refused():
+    model = load_model()
+    with pytest.raises(ValueError, match="lacks coef"):
+        check_model({k: v for k, v in model.items() if k != "coef"})
+    with pytest.raises(ValueError, match="scale"):
+        check_model(dict(model, scale=[1.0, 0.0, 1.0]))
+    with pytest.raises(ValueError, match="pairs"):
+        check_model(dict(model, pairs=model["pairs"][:-1]))
+    with pytest.raises(ValueError, match="signals"):
+        ResponseClassifier(model).update([0.1, 0.2], 20.0, T.H)
+    # at rest the class is kept
+    clf = ResponseClassifier(model, initial=3)
+    for _ in range(int(model["window"] / T.H) + 1):
+        assert clf.update([0.1, 1.0, 1e-3], 0.0, T.H) == 3
+    assert clf.blocks == 0
+
+
+def test_the_estimator_fmu_ships_the_model(dist):
+    with zipfile.ZipFile(dist / "SuspensionEstimator.fmu") as z:
+        names = [n for n in z.namelist() if n.endswith(ISO_MODEL)]
+        assert names, "the model file is not in the FMU"
+        assert z.read(names[0]) == (MODEL_DIR / ISO_MODEL).read_bytes()
