@@ -68,6 +68,9 @@ import numpy as np
 from scipy.linalg import expm
 
 DAMPING_MIN_DATA = 3.0  # s of data after a detected change before its damping estimate is used
+# s of data before the first damping estimate is used: after 0.3 s it scattered by ~5 %, and each
+# later update of more than the road filter's tolerance rebuilds (and kicks) its anchor
+DAMPING_FIRST_DATA = 1.0
 
 
 def _svf_step(r0, r1, r2, bd, x, u):
@@ -313,7 +316,7 @@ class MassEstimator:
             # c does not change with the payload: once estimated, after a detected change it is
             # updated again only from DAMPING_MIN_DATA s of new data on (a deflection stuck for 0.1 s, then a
             # spurious "change", had left 0.3 s of data and c 34 % low)
-            need = DAMPING_MIN_DATA if self._c_set else 5 * self.n_corr
+            need = DAMPING_MIN_DATA if self._c_set else max(5 * self.n_corr, DAMPING_FIRST_DATA)
             if self.samples % 16 == 0 and self._s1 * h >= need:
                 sol = self._slow_theta()
                 if sol is not None:

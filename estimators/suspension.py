@@ -158,7 +158,7 @@ class EstimatorConfig:
     # force error leaves the body's absolute position to the double-integrated accelerometer
     # (raw road error 38 mm against 4.4 mm on ISO C at 40 km/h; module doc)
     blend_hz: float = 1.0
-    damping_rebuild_tol: float = 0.01  # relative change of the identified damping that rebuilds the anchor
+    damping_rebuild_tol: float = 0.03  # relative change of the identified damping that rebuilds the anchor
     # road_estimator 2: each step the force-error filter's common velocity (v_s, v_u, v_r alike)
     # moves towards the anchor's by 2 pi align_hz h: its own is pinned only by the 0.01 Hz
     # reference and wanders (and a burst on a channel kicks it). ISO C, 40 km/h, HP error on the
@@ -724,9 +724,11 @@ class SuspensionEstimator:
                 # RLS (whose regressor does not use the road filter) must go on learning, else a
                 # wrong mass on a rough road locks itself in (rejections -> no mass update)
                 ok_a = ok_d = True
-            # (road_estimator 2: the anchor's, whose model ties the body to the wheel)
-            src, sm = (self.anchor, self.anchor_model) if self.anchor_trusted else (kf, self.model)
-            a_use = acc_sprung if ok_a else float(sm.H[0] @ src.x)
+            # (road_estimator 2: the deflection from the anchor, whose model ties the body to the
+            # wheel; the body acceleration from the force-error filter, which carries the force
+            # error the anchor's model lacks)
+            src = self.anchor if self.anchor_trusted else kf
+            a_use = acc_sprung if ok_a else float(self.model.H[0] @ kf.x)
             d_use = deflection if ok_d else float(src.x[IZS] - src.x[IZU])
             me.update(a_use, d_use, h, use=ok_a and ok_d and status != STATUS_REINIT)
             if me.resets != self._resets_seen:  # a payload change detected
@@ -743,7 +745,9 @@ class SuspensionEstimator:
                 thr = max(cfg.mass_rebuild_tol * self.m_model, cfg.mass_rebuild_sigma * sd)
                 agree = abs(m - self.m_model) <= thr
                 # the model mass is confirmed by enough data: closes the re-filter episode
-                self._confirmed_for = self._confirmed_for + h if agree and math.isfinite(sd) else 0.0
+                # (road_estimator 2: and the damping estimated, whose first value also re-filters)
+                agree_all = agree and math.isfinite(sd) and (self.anchor is None or me._c_set)
+                self._confirmed_for = self._confirmed_for + h if agree_all else 0.0
                 if not agree and self.time - self._last_rebuild >= cfg.mass_rebuild_interval:
                     self.m_model = m
                     self._last_rebuild = self.time
