@@ -784,6 +784,7 @@ class SuspensionEstimator:
         # (model.start_level_std), z_0 ~ the road-height std of the assumed class. The KF
         # estimates z_0 from its own road estimate (start_offset.py) and adds g(t) z_0^.
         var = max(float((self.anchor if self.anchor_trusted else kf).P[IZR, IZR]), 0.0) * self._honest_ratio()
+        base_var = var
         t_rel = self.time - self._t_reset
         if self._from_rest:
             var *= 1.0 - self._deficit(t_rel, h)
@@ -810,6 +811,10 @@ class SuspensionEstimator:
             self._offset = None  # g(t) ~ 1e-8: its samples are no longer needed
         out["road_height_est"] = x[IZR] + shift
         out["road_velocity_est"] = x[IVR]
+        if not var >= 0.0 and base_var >= 0.0:
+            # the start-height bookkeeping went negative (seen with road_estimator 2 on a 1 kg
+            # wheel on a 1000 N/m tyre under a 20 t body): the filter's own variance instead
+            var = base_var
         out["road_height_std"] = math.sqrt(var) if var >= 0.0 else math.nan
         out["z_s_est"] = x[IZS] + shift
         out["v_s_est"] = x[IVS]
