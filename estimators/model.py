@@ -98,10 +98,15 @@ class RoadModel:
 
 @dataclass(frozen=True)
 class ModelNoise:
-    """White acceleration noise intensities on the body and wheel velocity states, m^2/s^3."""
+    """White acceleration noise intensities on the body and wheel velocity states, m^2/s^3,
+    and the suspension-force error state (``force_error_matrices``): intensity ``q_f`` per unit
+    speed (N^2/m: the state is driven by q_f * speed N^2/s; 0 = no such state) and its
+    correlation time ``tau_f`` (s)."""
 
     q_s: float = 1e-8
     q_u: float = 1e-8
+    q_f: float = 0.0
+    tau_f: float = 0.1
 
 
 def road_coefficients(speed: float, road: RoadModel = RoadModel()) -> tuple[float, float]:
@@ -318,20 +323,24 @@ def discretise_averaged(A: np.ndarray, Qc: np.ndarray, h: float, ref_row: np.nda
     ``road_hold``: the vehicle sees the road held over the step at its end-of-step value, as
     in ``discretise_held_road``: X_k = Phi0 X_{k-1} + Gamma0 z_r,k + W_k with z_r,k = e_r' X_k,
     hence X_k = M (Phi0 X_{k-1} + W_k), M = (I - Gamma0 e_r')^-1 (Sherman-Morrison)."""
-    n, na = N_STATES, N_STATES_AVG
+    n = N_STATES
+    # states 0-5 of A, then the two averaged-sampling states, then any state appended to A
+    # (the force error of force_error_matrices) at its end
+    idx = list(range(n)) + list(range(N_STATES_AVG, N_STATES_AVG + A.shape[0] - n))
+    na = len(idx) + N_STATES_AVG - n
     Aa = np.zeros((na, na))
-    Aa[:n, :n] = A
+    Aa[np.ix_(idx, idx)] = A
     Aa[IVS_PREV, :n] = ref_row
     Aa[IVU_PREV, :n] = ref_row
     Qa = np.zeros((na, na))
-    Qa[:n, :n] = Qc
+    Qa[np.ix_(idx, idx)] = Qc
     b = np.zeros((na, 1))
     if road_hold:
         for r in (IVS, IVU):
             b[r, 0] = Aa[r, IZR]
             Aa[r, IZR] = 0.0
     Phi, Q = discretise(Aa, Qa, h)
-    Phi[:, n:] = 0.0  # rho restarts every step
+    Phi[:, n:N_STATES_AVG] = 0.0  # rho restarts every step
     Phi[IVS_PREV, IVS] += 1.0  # ... and the previous velocities are carried
     Phi[IVU_PREV, IVU] += 1.0
     if road_hold:
@@ -341,6 +350,34 @@ def discretise_averaged(A: np.ndarray, Qc: np.ndarray, h: float, ref_row: np.nda
         Phi = M @ Phi
         Q = M @ Q @ M.T
     return np.ascontiguousarray(Phi), 0.5 * (Q + Q.T)
+
+
+def force_error_matrices(A: np.ndarray, Qc: np.ndarray, H: np.ndarray, v: Vehicle, speed: float,
+                         noise: ModelNoise) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(A, Qc, H) with the suspension-force error state e (N) appended as the LAST state.
+
+    The suspension force is F_s = k_s d + c_s d' + e: the model's linear spring and damper plus
+    a Gauss-Markov error e' = -e / tau_f + w, E[w w'] = q_f |speed| delta (N^2/s), acting as
+    -e / m_s on the body and +e / m_u on the wheel. Whatever e is, m_s a_s + m_u a_u =
+    k_t (z_r - z_u): the road follows from the whole-corner force balance, which holds for any
+    spring and damper law, while the model's spring and damper still shape the prior. q_f = 0
+    is the exact linear model; q_f -> inf makes a_s a pure input (the suspension-model-free
+    filter). The intensity grows with speed because the suspension motion, and with it the
+    force error of a wrong c_s or k_s, grows with the road-velocity intensity (white road
+    velocity, PSD proportional to speed). H gains the column of e in the accelerations
+    (end-of-step rows); in the averaged rows (velocity differences) e acts through the dynamics.
+    """
+    n = A.shape[0]
+    A2 = np.zeros((n + 1, n + 1))
+    A2[:n, :n] = A
+    A2[IVS, n], A2[IVU, n] = -1.0 / v.m_s, 1.0 / v.m_u
+    A2[n, n] = -1.0 / noise.tau_f
+    Q2 = np.zeros((n + 1, n + 1))
+    Q2[:n, :n] = Qc
+    Q2[n, n] = noise.q_f * max(abs(float(speed)), 0.1)
+    H2 = np.zeros((H.shape[0], n + 1))
+    H2[:, :n] = H
+    return A2, Q2, H2
 
 
 @dataclass
@@ -370,11 +407,17 @@ class DiscreteModel:
         A = state_matrix(vehicle, speed, road)
         Qc = noise_intensity(gd_n0, speed, road, noise)
         if acc_sampling == 1:
-            Phi, Q = discretise_averaged(A, Qc, h, reference_acceleration_row(road), road_hold)
             H = averaged_output_matrix(h, deflection)
+            if noise.q_f > 0:  # e acts through the dynamics only: its H column stays zero
+                A, Qc, _ = force_error_matrices(A, Qc, A[:0], vehicle, speed, noise)
+                H = np.hstack([H, np.zeros((H.shape[0], 1))])
+            Phi, Q = discretise_averaged(A, Qc, h, reference_acceleration_row(road), road_hold)
         else:
-            Phi, Q = discretise_held_road(A, Qc, h) if road_hold else discretise(A, Qc, h)
             H = output_matrix(vehicle, deflection)
+            if noise.q_f > 0:
+                A, Qc, H = force_error_matrices(A, Qc, H, vehicle, speed, noise)
+                H[0, -1], H[1, -1] = -1.0 / vehicle.m_s, 1.0 / vehicle.m_u
+            Phi, Q = discretise_held_road(A, Qc, h) if road_hold else discretise(A, Qc, h)
         return cls(vehicle, float(speed), float(gd_n0), float(h), A, Phi, Q, H, int(acc_sampling))
 
 

@@ -1,4 +1,4 @@
-"""SuspensionEstimator FMU: road profile (KF or MME&KF), sprung mass (RLS) and ISO class online."""
+"""SuspensionEstimator FMU: road profile (robust KF, KF or MME&KF), sprung mass (RLS) and ISO class online."""
 from __future__ import annotations
 
 from suspension_estimation.estimators.suspension import EstimatorConfig, SuspensionEstimator as Core
@@ -11,7 +11,7 @@ _CONFIG = ("m_s_nominal", "m_u", "k_s", "k_t", "c_s", "road_estimator", "mass_es
 
 
 class SuspensionEstimator(ContractSlave):
-    description = ("Road-profile (KF, MME&KF), sprung-mass (forgetting-factor RLS) and ISO 8608 class "
+    description = ("Road-profile (robust KF, KF, MME&KF), sprung-mass (forgetting-factor RLS) and ISO 8608 class "
                    "estimation from body and wheel accelerations and suspension deflection")
     state_attributes = ("core",)
 

@@ -20,14 +20,15 @@ WIRES = ("acc_sprung", "acc_unsprung", "susp_deflection")
 
 
 def loop(dist, estimators: dict[str, dict], true_mass: float, stop: float, road_class: int = 3,
-         step: float = 1e-3, seed: int = 1) -> np.ndarray:
-    """Road -> plant -> several estimator instances fed by the same plant."""
+         step: float = 1e-3, seed: int = 1, plant: dict | None = None) -> np.ndarray:
+    """Road -> plant (parameters ``plant``) -> several estimator instances fed by the same plant."""
     components = {"road": dist / "ISORoad.fmu", "plant": dist / "QuarterCar.fmu",
                   **{name: dist / "SuspensionEstimator.fmu" for name in estimators}}
     connections = [("vehicle_speed", "road.vehicle_speed"), ("road.road_height", "plant.road_height")]
     for name in estimators:
         connections += [(f"plant.{w}", f"{name}.{w}") for w in WIRES] + [("vehicle_speed", f"{name}.vehicle_speed")]
-    parameters = {"road.road_class": road_class, "road.seed": seed, "plant.noise_seed": seed}
+    parameters = {"road.road_class": road_class, "road.seed": seed, "plant.noise_seed": seed,
+                  **{f"plant.{k}": v for k, v in (plant or {}).items()}}
     for name, params in estimators.items():
         parameters.update({f"{name}.{k}": v for k, v in params.items()})
     record = ["road.road_height", "plant.z_s"] + [f"{n}.{o}" for n in estimators for o in OUTPUTS]
@@ -91,7 +92,7 @@ def test_non_finite_measurement_is_rejected_and_the_filter_predicts_through(dist
 @pytest.mark.parametrize("params, name", [
     ({"forgetting_factor": 0.9}, "forgetting_factor"), ({"forgetting_factor": 1.01}, "forgetting_factor"),
     ({"m_s_nominal": 0.0}, "m_s_nominal"), ({"k_t": -1.0}, "k_t"), ({"c_s": float("nan")}, "c_s"),
-    ({"road_estimator": 2}, "road_estimator"), ({"mass_estimator": -1}, "mass_estimator"),
+    ({"road_estimator": 3}, "road_estimator"), ({"mass_estimator": -1}, "mass_estimator"),
     ({"road_class": 9}, "road_class"), ({"acc_sprung_noise_std": 0.0}, "acc_sprung_noise_std"),
     ({"defl_noise_std": -1e-4}, "defl_noise_std"),
 ])

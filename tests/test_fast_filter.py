@@ -67,7 +67,8 @@ def test_road_height_std_builds_up_from_a_start_at_rest():
     variance over P_zr) (no credit there: the relative states of a moving car are not known).
     The start-height term is g^2 P_bb - 2 g P_db of the z_0 estimate (start_offset.py), which
     shifts the road estimate by g z_0^, and starts at the prior (s0 g)^2."""
-    est = SuspensionEstimator(road_class=3, mass_estimator=0)
+    # the exact-model KF: with road_estimator 2 the same terms come from its anchor filter
+    est = SuspensionEstimator(road_class=3, mass_estimator=0, road_estimator=0)
     _, meas, _, _ = simulate(road_class=3, T=20.0)
     s0 = iso_road_height_std(iso8608.class_psd_n0(3))
     h = 1e-3
@@ -115,6 +116,7 @@ def test_frozen_gain_equals_full_recursion(kw):
     (fast, a), (full, b) = _run_both(meas, steps, **kw)
     assert fast.kf.fast and not full.kf.fast
     assert fast.kf.frozen  # back at the fixed point (frozen) after the last disturbance
+    assert fast.anchor is None or fast.anchor.frozen
     assert np.array_equal(a[:, -1], b[:, -1])  # the same rejection decisions
     np.testing.assert_allclose(a[:, :6], b[:, :6], rtol=0, atol=1e-9)
     np.testing.assert_allclose(a[:, 6], b[:, 6], rtol=1e-6)  # road_height_std

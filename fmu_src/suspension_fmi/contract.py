@@ -179,8 +179,10 @@ QUARTER_CAR: tuple[Var, ...] = (
 SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
     _real_param("m_s_nominal", "kg", V.m_s, "sprung mass the model assumes at start", VEHICLE_RANGES["m_s"]),
     *_vehicle_params("the model assumes"),
-    Var("road_estimator", "parameter", "Integer", None, 0,
-        "0 = Kalman filter, 1 = MME&KF (minimum model error + KF)", {0: "Kalman filter", 1: "MME&KF"}),
+    Var("road_estimator", "parameter", "Integer", None, 2,
+        "0 = Kalman filter on the exact linear model, 1 = MME&KF (minimum model error + KF), 2 = Kalman "
+        "filter with a suspension-force error state (robust to the spring and damper; default)",
+        {0: "Kalman filter", 1: "MME&KF", 2: "KF with suspension-force error state"}),
     Var("mass_estimator", "parameter", "Integer", None, 1,
         "0 = off (mass stays nominal), 1 = forgetting-factor RLS on the suspension force balance",
         {0: "off", 1: "forgetting-factor RLS"}),

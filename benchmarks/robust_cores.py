@@ -1,0 +1,104 @@
+"""The robustness grid on the plain-Python cores (no FMU): fast, and the only place the nonlinear
+plant (air spring + asymmetric damper, plant/nonlinear_car.py) is measured so far.
+
+    .venv/bin/python benchmarks/robust_cores.py [--classes C] [--speeds 40,80] [--seeds 1]
+        [--duration 60] [--cases exact,c_s -30%,...,nonlinear]
+
+Plant: plant.QuarterCar with the vehicle of each case of harness/studies/robust.py, or
+plant.NonlinearQuarterCar with the default air spring and damper ("nonlinear": the estimators
+are told only its linearisation at the static point). Estimators told the nominal vehicle:
+the default (road_estimator 2), the KF (road_estimator 0) and, as a diagnosis, the force-error
+filter alone (road_estimator 2 without the anchor's blend and velocity pull, mass not fed back).
+Prints one markdown row per (class, speed, case, estimator): HP / raw road error std %, in-band
+gain, 2-sigma coverage, mean sprung-mass error % after the 10 s warm-up (means over seeds).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from suspension_estimation.estimators import SuspensionEstimator  # noqa: E402
+from suspension_estimation.harness.metrics import road_scores  # noqa: E402
+from suspension_estimation.harness.studies.robust import CASES, NOMINAL, plant_vehicle  # noqa: E402
+from suspension_estimation.plant import iso8608  # noqa: E402
+from suspension_estimation.plant.nonlinear_car import NonlinearQuarterCar  # noqa: E402
+from suspension_estimation.plant.quarter_car import QuarterCar, SensorNoise  # noqa: E402
+from suspension_estimation.plant.road import SyntheticRoad  # noqa: E402
+from suspension_estimation.plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_DAMPER  # noqa: E402
+from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE  # noqa: E402
+
+H = 1e-3  # s
+WARMUP = 10.0  # s
+ESTIMATORS = {
+    "default": {},
+    "KF (0)": {"road_estimator": 0},
+    "force-error filter alone": {"blend_hz": 1e-9, "align_hz": 0.0, "mass_feedback": False},
+}
+
+
+def drive(case: str, cls: int, speed: float, duration: float, seed: int):
+    """(t, measurements, true road, the vehicle the estimators are told)."""
+    road = SyntheticRoad(iso8608.class_psd_n0(cls), seed=seed)
+    if case == "nonlinear":
+        car = NonlinearQuarterCar(DEFAULT_VEHICLE, DEFAULT_AIR_SPRING, DEFAULT_DAMPER, noise=SensorNoise(),
+                                  noise_seed=1000 + seed)
+        told = car.linearisation()
+    else:
+        car = QuarterCar(DEFAULT_VEHICLE.with_(**dict(zip(("m_u", "k_s", "k_t", "c_s"), plant_vehicle(case)))),
+                         SensorNoise(), noise_seed=1000 + seed)
+        told = DEFAULT_VEHICLE.with_(**NOMINAL)
+    n = int(round(duration / H))
+    meas, zr = np.empty((n, 3)), np.empty(n)
+    for k in range(n):
+        car.step(road.height(speed * k * H), H)
+        meas[k], zr[k] = car.measured, car.road
+    return np.arange(1, n + 1) * H, meas, zr, told
+
+
+def score(t, meas, zr, told, speed: float, **kw) -> dict:
+    est = SuspensionEstimator(m_s_nominal=told.m_s, m_u=told.m_u, k_s=told.k_s, k_t=told.k_t, c_s=told.c_s, **kw)
+    out = np.array([[o["road_height_est"], o["road_height_std"], o["sprung_mass_est"]]
+                    for o in (est.step(z[0], z[1], z[2], speed, H) for z in meas)])
+    s = road_scores(t, out[:, 0], zr, out[:, 1], warmup=WARMUP)
+    s["mass_err_pct"] = float(100 * (np.mean(out[t >= WARMUP, 2]) / DEFAULT_VEHICLE.m_s - 1))
+    return s
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--classes", default="C")
+    ap.add_argument("--speeds", default="40,80", help="km/h")
+    ap.add_argument("--seeds", type=int, default=1)
+    ap.add_argument("--duration", type=float, default=60.0, help="s (the first 10 s are not scored)")
+    ap.add_argument("--cases", default=",".join([*CASES, "nonlinear"]))
+    a = ap.parse_args(argv)
+    cases = [c.strip() for c in a.cases.split(",")]
+    unknown = [c for c in cases if c not in CASES and c != "nonlinear"]
+    if unknown or a.duration <= WARMUP or a.seeds < 1:
+        print(f"error: unknown cases {unknown}, or --duration <= {WARMUP} s, or --seeds < 1", file=sys.stderr)
+        return 1
+    print("| ISO | km/h | plant | estimator | HP % | raw % | gain | cov | mass % |\n|---|---|---|---|---|---|---|---|---|")
+    for letter in a.classes.split(","):
+        cls = "ABCDEFGH".index(letter.strip().upper()) + 1
+        for kmh in (float(v) for v in a.speeds.split(",")):
+            for case in cases:
+                rows = {name: [] for name in ESTIMATORS}
+                for seed in range(1, a.seeds + 1):
+                    t, meas, zr, told = drive(case, cls, kmh / 3.6, a.duration, seed)
+                    for name, kw in ESTIMATORS.items():
+                        rows[name].append(score(t, meas, zr, told, kmh / 3.6, **kw))
+                for name, r in rows.items():
+                    m = {k: np.mean([x[k] for x in r]) for k in r[0]}
+                    print(f"| {letter.strip().upper()} | {kmh:g} | {case} | {name} | {m['err_std_hp_pct']:.2f} | "
+                          f"{m['err_std_raw_pct']:.1f} | {m['gain_hp']:.3f} | {m['coverage_2sigma']:.3f} | "
+                          f"{m['mass_err_pct']:+.2f} |", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
