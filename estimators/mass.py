@@ -178,7 +178,7 @@ class MassEstimator:
         # regressor's own size (F[a_s]^2 ~ 0.1..10) makes this prior weak within ~0.1 s.
         theta0, F0 = [m_nominal], np.diag([m_nominal ** 2])
         self.c_hat = self.c_s  # N.s/m, the damping the fast RLS uses (estimated: see the module doc)
-        self._c_set = False  # c_hat has been estimated once
+        self.damping_identified = False  # c_hat has been estimated once
         self.rls = ForgettingRLS(np.array(theta0), F0, lam, trace_max=100.0 * float(np.trace(F0)))
         self.m_bounds = m_bounds or (0.1 * m_nominal, 10.0 * m_nominal)
         self.samples = 0
@@ -316,12 +316,12 @@ class MassEstimator:
             # c does not change with the payload: once estimated, after a detected change it is
             # updated again only from DAMPING_MIN_DATA s of new data on (a deflection stuck for 0.1 s, then a
             # spurious "change", had left 0.3 s of data and c 34 % low)
-            need = DAMPING_MIN_DATA if self._c_set else max(5 * self.n_corr, DAMPING_FIRST_DATA)
+            need = DAMPING_MIN_DATA if self.damping_identified else max(5 * self.n_corr, DAMPING_FIRST_DATA)
             if self.samples % 16 == 0 and self._s1 * h >= need:
                 sol = self._slow_theta()
                 if sol is not None:
                     self.c_hat = min(max(float(sol[1]), 0.0), 10.0 * self.c_s + 1e3)
-                    self._c_set = True
+                    self.damping_identified = True
         else:
             self._spp = g * self._spp + fa * fa
             self._spy = g * self._spy + fa * y

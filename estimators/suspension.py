@@ -707,7 +707,6 @@ class SuspensionEstimator:
                             + (0.0 if a is None else sum(a.x.tolist()) + (0.0 if a.frozen else float(a.P.sum())))):
             self.reset_state()
             status = STATUS_REINIT
-        self._h = h
         self._blend_step()
         if cfg.refilter_span > 0 and status != STATUS_REINIT:
             self._record.append((self._steps, z, rows))
@@ -746,7 +745,7 @@ class SuspensionEstimator:
                 agree = abs(m - self.m_model) <= thr
                 # the model mass is confirmed by enough data: closes the re-filter episode
                 # (road_estimator 2: and the damping estimated, whose first value also re-filters)
-                agree_all = agree and math.isfinite(sd) and (self.anchor is None or me._c_set)
+                agree_all = agree and math.isfinite(sd) and (self.anchor is None or me.damping_identified)
                 self._confirmed_for = self._confirmed_for + h if agree_all else 0.0
                 if not agree and self.time - self._last_rebuild >= cfg.mass_rebuild_interval:
                     self.m_model = m
