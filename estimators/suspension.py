@@ -60,6 +60,7 @@ from ..plant.quarter_car import NOISE_STD_RANGES
 from ..plant.step_size import same_step
 from ..plant.vehicle import Vehicle, VEHICLE_RANGES, check_range
 
+from .interface import RoadFilter, code_problems, composed_factory, state_list
 from .kalman import LinearKF, MMEKF, error_buildup
 from .mass import MassEstimator
 from .model import (IVR, IVS, IVU, IZR, IZS, IZU, N_STATES, N_STATES_AVG, DiscreteModel, ModelNoise,
@@ -228,13 +229,15 @@ class EstimatorConfig:
         for name, key in (("m_s_nominal", "m_s"), ("m_u", "m_u"), ("k_s", "k_s"), ("k_t", "k_t"),
                           ("c_s", "c_s")):
             msgs.append(check_range(name, float(getattr(self, name)), *VEHICLE_RANGES[key]))
-        for name, hi in (("road_estimator", 2), ("mass_estimator", 1), ("road_class", 8),
+        for name, hi in (("road_estimator", None), ("mass_estimator", None), ("road_class", 8),
                          ("acc_sampling", 1)):
             val = getattr(self, name)
             if isinstance(val, float) and not val.is_integer():
-                msgs.append(f"{name} = {val!r} must be an integer in [0, {hi}]")
-            else:
+                msgs.append(f"{name} = {val!r} must be an integer" + ("" if hi is None else f" in [0, {hi}]"))
+            elif hi is not None:
                 msgs.append(check_range(name, val, 0, hi))
+        if not any(m and m.startswith(("road_estimator", "mass_estimator")) for m in msgs):
+            msgs += code_problems(int(self.road_estimator), int(self.mass_estimator))
         msgs.append(check_range("forgetting_factor", float(self.forgetting_factor), 0.9, 1.0,
                                 low_inclusive=False))
         for name, (lo, hi) in NOISE_STD_RANGES.items():
@@ -263,6 +266,9 @@ class SuspensionEstimator:
         if problems:
             raise ValueError("; ".join(problems))
         self.cfg = cfg
+        # codes beyond the KF family: an estimator of the registry (interface.py), composed here
+        factory = composed_factory(int(cfg.road_estimator), int(cfg.mass_estimator))
+        self.composed: RoadFilter | None = None if factory is None else factory(cfg)
         self.R = measurement_covariance(cfg.acc_sprung_noise_std, cfg.acc_unsprung_noise_std,
                                         cfg.defl_noise_std if cfg.use_deflection else None)
         dim_z = self.R.shape[0]
@@ -306,6 +312,7 @@ class SuspensionEstimator:
         self.m_model = float(cfg.m_s_nominal)
         self.c_model = float(cfg.c_s)  # damping of the anchor filter's model (identified)
         self.time = 0.0
+        self._speed_last = 0.0  # m/s, the last finite speed (composed estimators)
         self.distance = 0.0
         self._rejected_time = 0.0
         self._outlier_time = [0.0] * self.R.shape[0]  # s of the current outlier streak per channel
@@ -646,6 +653,8 @@ class SuspensionEstimator:
         cfg = self.cfg
         if not (math.isfinite(h) and h > 0):
             raise ValueError(f"step size h = {h!r} must be finite and > 0")
+        if self.composed is not None:
+            return self._step_composed(acc_sprung, acc_unsprung, deflection, speed, h)
         if self.model is not None:
             h = same_step(h, self.model.h)
         if not math.isfinite(speed):
@@ -827,4 +836,63 @@ class SuspensionEstimator:
         out["nis"] = float(kf.nis)  # of the last update (kept through rejected steps)
         out["status"] = status
         out["iri_est"] = self.iri.update(self.distance, out["road_height_est"])
+        return out
+
+    def _step_composed(self, acc_sprung: float, acc_unsprung: float, deflection: float, speed: float,
+                       h: float) -> dict[str, float]:
+        """``step`` for an estimator of the registry (interface.RoadFilter): the sample checks,
+        status, re-initialisation, the RLS mass when the estimator has none of its own (fed back
+        through ``set_mass`` as for the KF), class, IRI and outputs are this object's."""
+        cfg, f = self.cfg, self.composed
+        if f.h is not None:
+            h = same_step(h, f.h)
+        speed = abs(float(speed)) if math.isfinite(speed) else self._speed_last
+        self._speed_last = speed
+        vals = (float(acc_sprung), float(acc_unsprung), float(deflection))
+        self.time += h
+        self._h = h
+        self.distance += speed * h
+        self._steps += 1
+        live = self._live(vals, h)
+        rows = None if all(live) else np.flatnonzero(live)
+        status = STATUS_OK if rows is None else STATUS_REJECTED
+        f.step(np.array(vals), rows, speed, h)
+        x, var = state_list(f.x), float(f.road_variance)
+        if not math.isfinite(sum(x) + var):
+            f.reset()
+            status = STATUS_REINIT
+            x, var = state_list(f.x), float(f.road_variance)
+        self.model_builds = f.model_builds
+        me = self.mass_est
+        if f.mass is not None:
+            mass = float(f.mass)
+        elif me is not None:
+            ok = live[0] and live[2]
+            me.update(vals[0] if live[0] else 0.0, vals[2] if live[2] else x[IZS] - x[IZU], h,
+                      use=ok and status != STATUS_REINIT)
+            if cfg.mass_feedback and me.samples * h >= cfg.mass_warmup:
+                m, sd = me.mass_slow, me.mass_slow_std(h)
+                if (abs(m - self.m_model) > max(cfg.mass_rebuild_tol * self.m_model, cfg.mass_rebuild_sigma * sd)
+                        and self.time - self._last_rebuild >= cfg.mass_rebuild_interval):
+                    self.m_model = m
+                    self._last_rebuild = self.time
+                    self.mass_rebuilds += 1
+                    f.set_mass(m)
+            mass = float(me.mass)
+        else:
+            mass = float(cfg.m_s_nominal)
+        if status != STATUS_REINIT:
+            self.classifier.update(self.distance, x[IZR], speed)
+        out = self.outputs
+        out["road_height_est"] = x[IZR]
+        out["road_velocity_est"] = x[IVR]
+        out["road_height_std"] = math.sqrt(var) if var >= 0.0 else math.nan
+        out["z_s_est"], out["v_s_est"], out["z_u_est"], out["v_u_est"] = x[IZS], x[IVS], x[IZU], x[IVU]
+        out["susp_deflection_est"] = x[IZS] - x[IZU]
+        out["tire_deflection_est"] = x[IZU] - x[IZR]
+        out["sprung_mass_est"] = mass
+        out["road_class_est"] = int(self.classifier.road_class)
+        out["nis"] = float(f.nis)
+        out["status"] = status
+        out["iri_est"] = self.iri.update(self.distance, x[IZR])
         return out

@@ -64,6 +64,25 @@ _IRI_SEGMENT = Var("iri_segment", "parameter", "Real", "m", 100.0,
                    "length of the segments the IRI is reported for", (1.0, 1e5))
 
 
+# The estimator codes: code -> (short name, meaning). estimators/interface.py maps each code to
+# the class that implements it (a test checks that both list the same codes).
+ROAD_ESTIMATORS: dict[int, tuple[str, str]] = {
+    0: ("Kalman filter", "Kalman filter on the exact linear model (paper 000's baseline)"),
+    1: ("MME&KF", "MME&KF: minimum model error + Kalman filter (paper 000)"),
+    2: ("KF with suspension-force error state",
+        "Kalman filter with a suspension-force error state, anchored below 1 Hz by the exact-model KF at the "
+        "identified mass and damping (robust to the spring and damper; default)"),
+}
+MASS_ESTIMATORS: dict[int, tuple[str, str]] = {
+    0: ("off", "off: the mass stays m_s_nominal"),
+    1: ("forgetting-factor RLS", "forgetting-factor RLS on the suspension force balance (paper 001)"),
+}
+
+
+def _codes_text(codes: dict[int, tuple[str, str]]) -> str:
+    return "; ".join(f"{k} = {meaning}" for k, (_, meaning) in codes.items())
+
+
 def _iri_output(name: str, of: str) -> Var:
     return Var(name, "output", "Real", "m/km", None,
                "International Roughness Index (ASTM E1926: golden car at 80 km/h over the profile in distance, "
@@ -179,13 +198,10 @@ QUARTER_CAR: tuple[Var, ...] = (
 SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
     _real_param("m_s_nominal", "kg", V.m_s, "sprung mass the model assumes at start", VEHICLE_RANGES["m_s"]),
     *_vehicle_params("the model assumes"),
-    Var("road_estimator", "parameter", "Integer", None, 2,
-        "0 = Kalman filter on the exact linear model, 1 = MME&KF (minimum model error + KF), 2 = Kalman "
-        "filter with a suspension-force error state (robust to the spring and damper; default)",
-        {0: "Kalman filter", 1: "MME&KF", 2: "KF with suspension-force error state"}),
-    Var("mass_estimator", "parameter", "Integer", None, 1,
-        "0 = off (mass stays nominal), 1 = forgetting-factor RLS on the suspension force balance",
-        {0: "off", 1: "forgetting-factor RLS"}),
+    Var("road_estimator", "parameter", "Integer", None, 2, _codes_text(ROAD_ESTIMATORS),
+        {k: name for k, (name, _) in ROAD_ESTIMATORS.items()}),
+    Var("mass_estimator", "parameter", "Integer", None, 1, _codes_text(MASS_ESTIMATORS),
+        {k: name for k, (name, _) in MASS_ESTIMATORS.items()}),
     Var("mass_feedback", "parameter", "Boolean", None, True,
         "re-build the road estimator's model at the estimated sprung mass (joint road + mass estimation)"),
     _real_param("forgetting_factor", "1", 0.995, "RLS forgetting factor lambda, 0.9 < lambda <= 1",

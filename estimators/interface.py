@@ -1,0 +1,125 @@
+"""The one small interface of the estimators that ``SuspensionEstimator`` composes, and the
+registry of every ``road_estimator`` and ``mass_estimator`` code.
+
+``SuspensionEstimator`` (suspension.py) owns what is common to every estimator: the sample
+checks (non-finite or frozen channels), ``status``, re-initialisation after a non-finite state,
+the online road class, the IRI and the contract's outputs. An estimator owns its model, its state
+and its own step-size bookkeeping. Adding one touches its own module, one line of the registry
+below, its code and meaning in the contract, and the docs.
+
+Codes 0-2 of ``road_estimator`` and 0-1 of ``mass_estimator`` are the KF family that
+``SuspensionEstimator`` runs itself (gating, re-filtering after a payload change and the anchor
+of code 2 are woven into that filter's step); every other code names a ``RoadFilter`` subclass.
+A mass code with a class of its own is a joint estimator: it gives the road too, and says which
+road codes it goes with (``roads``).
+"""
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Sequence
+
+import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .suspension import EstimatorConfig
+
+# the state every estimator reports, in this order (m, m/s), at the instant of the sample
+STATE = ("z_s", "v_s", "z_u", "v_u", "z_r", "v_r")
+
+
+class RoadFilter:
+    """Base of the estimators composed by ``SuspensionEstimator`` (codes beyond its KF family).
+
+    A subclass implements ``__init__(cfg)`` (raise ``ValueError`` naming a bad parameter and its
+    range) and ``step``, and keeps the attributes below current after each step.
+
+    Attributes:
+        x: 6 floats [z_s, v_s, z_u, v_u, z_r, v_r] (m, m/s), filtered estimate x_{k|k}.
+        road_variance: m^2, the variance of x[4] the estimator stands for (``road_height_std``).
+        nis: normalised innovation squared of the last update (0 when none).
+        mass: kg, its own sprung-mass estimate, or None when it has none (the composer's
+            ``mass_estimator`` 1 then estimates it and passes it on through ``set_mass``).
+        h: s, the step its model is built for (None before the first step).
+        model_builds: how many times it (re-)built its model: a test counts them.
+    """
+
+    x: list[float]
+    road_variance: float = 0.0
+    nis: float = 0.0
+    mass: float | None = None
+    h: float | None = None
+    model_builds: int = 0
+
+    def __init__(self, cfg: "EstimatorConfig"):
+        self.cfg = cfg
+        self.x = [0.0] * len(STATE)
+
+    def step(self, z: np.ndarray, rows: np.ndarray | None, speed: float, h: float) -> None:
+        """One sample z = [acc_sprung (m/s^2), acc_unsprung (m/s^2), deflection (m)].
+
+        ``rows`` None: every channel is valid; else the indices of the valid ones (possibly none:
+        predict only). ``speed`` m/s, finite and >= 0. ``h`` s since the previous sample, already
+        snapped to ``self.h`` by the caller when it differs from it by rounding only."""
+        raise NotImplementedError
+
+    def set_mass(self, m_s: float) -> None:
+        """The sprung mass (kg) the composer's mass estimator identified; ignored by default."""
+
+    def reset(self) -> None:
+        """Back to the start state (the composer calls it after a non-finite estimate)."""
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class Code:
+    """One code of ``road_estimator`` or ``mass_estimator``: ``name`` for messages; ``factory``
+    "module:Class" of a ``RoadFilter`` in this package, or None for ``SuspensionEstimator``'s own
+    KF family; ``roads``: for a joint mass estimator, the road codes it goes with (None: any).
+    The contract (suspension_fmi/contract.py) gives each code its meaning; a test checks that both
+    list the same codes."""
+
+    name: str
+    factory: str | None = None
+    roads: tuple[int, ...] | None = None
+
+
+ROAD_ESTIMATORS: dict[int, Code] = {
+    0: Code("Kalman filter"),
+    1: Code("MME&KF"),
+    2: Code("KF with suspension-force error state"),
+}
+
+MASS_ESTIMATORS: dict[int, Code] = {
+    0: Code("off"),
+    1: Code("forgetting-factor RLS"),
+}
+
+
+def code_problems(road: int, mass: int) -> list[str]:
+    """Messages for an unknown code or a combination that does not go together."""
+    msgs = []
+    for name, val, codes in (("road_estimator", road, ROAD_ESTIMATORS), ("mass_estimator", mass, MASS_ESTIMATORS)):
+        if val not in codes:
+            msgs.append(f"{name} = {val!r} is outside the allowed values "
+                        f"{{{', '.join(f'{k} = {c.name}' for k, c in sorted(codes.items()))}}}")
+    if not msgs:
+        m = MASS_ESTIMATORS[mass]
+        if m.roads is not None and road not in m.roads:
+            msgs.append(f"mass_estimator = {mass} ({m.name}) gives the road itself and needs road_estimator in "
+                        f"{{{', '.join(str(r) for r in m.roads)}}}, not {road}")
+    return msgs
+
+
+def composed_factory(road: int, mass: int) -> type[RoadFilter] | None:
+    """The ``RoadFilter`` class the codes select (a joint mass estimator's first), else None."""
+    spec = MASS_ESTIMATORS[mass].factory or ROAD_ESTIMATORS[road].factory
+    if spec is None:
+        return None
+    module, cls = spec.split(":")
+    return getattr(importlib.import_module(f".{module}", __package__), cls)
+
+
+def state_list(x: Sequence[float]) -> list[float]:
+    """A state as the 6 plain floats of ``STATE`` (a longer state keeps its first six)."""
+    return [float(v) for v in list(x)[:len(STATE)]]
