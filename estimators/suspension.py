@@ -49,7 +49,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.signal import butter
@@ -63,12 +63,13 @@ from ..plant.vehicle import Vehicle, VEHICLE_RANGES, check_range
 from .interface import RoadFilter, code_problems, composed_factory, state_list
 from .kalman import LinearKF, MMEKF, error_buildup
 from .mass import MassEstimator
-from .model import (IVR, IVS, IVU, IZR, IZS, IZU, N_STATES, N_STATES_AVG, DiscreteModel, ModelNoise,
-                    RoadModel, held_input_matrix, iso_road_height_std, measurement_covariance,
+from .model import (IVR, IVS, IVU, IZR, IZS, IZU, N_STATES, N_STATES_AVG, DiscreteModel,
+                    held_input_matrix, iso_road_height_std, measurement_covariance,
                     reference_step_response)
 from .road_class import RoadClassifier
 from .start_offset import StartOffset
 from .steady_state import raw_error_variance
+from .tuning import TUNING, TUNING_FIELDS, Tuning
 
 OUTPUTS = ("road_height_est", "road_velocity_est", "road_height_std", "z_s_est", "v_s_est",
            "z_u_est", "v_u_est", "susp_deflection_est", "tire_deflection_est", "sprung_mass_est",
@@ -123,7 +124,7 @@ class Blend:
 
 @dataclass
 class EstimatorConfig:
-    """Parameters of the estimator; the first block mirrors the contract (SI units)."""
+    """Parameters of the estimator: the contract's (SI units), and the fixed choices (``tuning``)."""
 
     m_s_nominal: float = 410.0  # kg, sprung mass the model assumes at start
     m_u: float = 39.0  # kg
@@ -141,83 +142,9 @@ class EstimatorConfig:
     # 0 = accelerations sampled at the end of the step, 1 = averaged over the step (must match
     # the sensor): 1 appends the previous v_s, v_u to the state (8 states), see model.py
     acc_sampling: int = 0
-    # --- beyond the contract (tuned once, for all classes and speeds) ---
-    # the vehicle sees the road held over the step at its end-of-step value (co-simulation
-    # convention); -1 = only with acc_sampling = 1, 0 = never, 1 = always
-    road_hold: int = -1
-    # ---
-    use_deflection: bool = True  # use the deflection sensor in the road filter
-    mme_weight: float = 10.0  # W of MME&KF, (m/s^2)^-2
-    # RLS on [m_s, c] instead of m_s; None = with road_estimator 2 (which does not trust c_s)
-    estimate_damping: bool | None = None
-    # intensity of the suspension-force error state of road_estimator 2 per unit speed, N^2/m
-    # (model.force_error_matrices): 1e4 N^2/s at 40 km/h, chosen on the linear plant with c_s
-    # +-30 % and k_s +-15 % against the cost on the exact vehicle (docs/robustness.md)
-    force_error_q: float = 900.0
-    # road_estimator 2: corner (Hz) below which the road comes from the exact-model KF at the
-    # identified mass and damping (the anchor) instead of the force-error filter, whose free
-    # force error leaves the body's absolute position to the double-integrated accelerometer
-    # (raw road error 38 mm against 4.4 mm on ISO C at 40 km/h; module doc)
-    blend_hz: float = 1.0
-    damping_rebuild_tol: float = 0.03  # relative change of the identified damping that rebuilds the anchor
-    # road_estimator 2: each step the force-error filter's common velocity (v_s, v_u, v_r alike)
-    # moves towards the anchor's by 2 pi align_hz h: its own is pinned only by the 0.01 Hz
-    # reference and wanders (and a burst on a channel kicks it). ISO C, 40 km/h, HP error on the
-    # exact vehicle 2.59 / 2.42 % and with c_s -30 % 3.28 / 3.03 % at 0 / 1 Hz
-    align_hz: float = 1.0
-    # road_estimator 2: the anchor restarts from the force-error filter's state when it differs
-    # from it by more than this many of the force-error filter's own std (road height or body
-    # velocity); 0 = never
-    anchor_gate: float = 5.0
-    anchor_hold: float = 0.5  # s: after an update without every channel the output fades from the anchor's
-    # Mass feedback: the road filter is rebuilt at the since-last-change least-squares mass
-    # (MassEstimator.mass_slow) when it differs from the model mass by more than
-    # max(mass_rebuild_tol, mass_rebuild_sigma standard errors): a significant AND relevant change.
-    mass_rebuild_tol: float = 0.001  # relative; 0.6 % model-mass error cost ~2 % HP error on ISO B
-    mass_rebuild_sigma: float = 3.0
-    mass_warmup: float = 0.2  # s of RLS data before its estimate is fed back
-    # relative difference of the RLS mass from the model mass above which the RLS keeps using
-    # live body-acceleration and deflection samples that the road filter rejects
-    mass_trust_sensors: float = 0.05
-    mass_rebuild_interval: float = 0.02  # s, minimum time between two mass rebuilds (cost cap)
-    default_class: int = 3  # class assumed while road_class = 0 and none identified yet
-    # Q is set from the class max(assumed class, q_class_min). Scheduling Q down to the class
-    # of a smooth road did NOT help: a smaller road intensity pins the unobservable common drift
-    # of body, wheel and road harder and the filter shrinks the road in band (ISO B, 40 km/h,
-    # true mass 230 kg: HP error 11.1 % with the Q of B, 1.7 % with D, 1.4 % with F; switching
-    # Q at the first identified class also kicks the drift). So classes below F share F's Q.
-    q_class_min: int = 6
-    speed_rebuild_tol: float = 0.01  # relative speed change that re-discretises
-    outlier_nis: float = 1e4  # NIS above which a measurement is rejected as an outlier
-    # Re-initialise when every finite channel has been rejected for this long (a diverged
-    # filter); a burst of bad samples on some channels is predicted through instead.
-    reinit_after: float = 0.2  # s
-    # s of an outlier streak on a channel during which its gate uses at most the stationary
-    # innovation variance; after it the actual (grown) variance, so that a channel the filter
-    # itself has drifted away from is taken back
-    gate_hold: float = 0.1
-    frozen_time: float = 0.05  # s a channel may repeat its value bit for bit before it is rejected
-    # The road filter starts at the stationary covariance of its model (DARE), again whenever the
-    # model is rebuilt or the filter re-initialised, and keeps its gain frozen there (kalman.py);
-    # after a skipped or partial update it runs the full recursion until the posterior
-    # covariance is back within freeze_tol (relative) of the fixed point.
-    freeze_tol: float = 1e-8
-    fast_gain: bool = True  # False: the full covariance recursion every step (same estimates)
-    road_model: RoadModel = field(default_factory=RoadModel)
-    # estimate the road height the car started on from the road estimate (start_offset.py; KF
-    # only) and add it back as it shows through the reference; False: report -z_0 g(t) as error
-    start_offset: bool = True
-    model_noise: ModelNoise = field(default_factory=ModelNoise)
-    class_gain: float = 1.0  # in-band amplitude gain of the road estimate (class correction)
-    # Re-filtering after a mass rebuild (see the module doc): when the road filter is rebuilt at
-    # a new mass within refilter_span s of the onset of the mass change (the start of the run, or
-    # the RLS change detection minus refilter_lookback s), the filter is re-run from a snapshot
-    # taken before the onset over the buffered measurements with the new model. 0 disables.
-    refilter_span: float = 2.0  # s
-    refilter_lookback: float = 0.1  # s before the RLS change detection (it comes up to 85 ms late)
-    refilter_confirm: float = 0.5  # s of agreement of data and model mass that close an episode
-    snapshot_interval: float = 0.02  # s between filter snapshots
     iri_segment: float = 100.0  # m, segments of the IRI of the road estimate (plant/iri.py)
+    # everything else is a fixed choice, with its reason, in tuning.py
+    tuning: Tuning = TUNING
 
     def vehicle(self, m_s: float | None = None) -> Vehicle:
         return Vehicle(m_s=self.m_s_nominal if m_s is None else m_s, m_u=self.m_u, k_s=self.k_s,
@@ -242,11 +169,7 @@ class EstimatorConfig:
                                 low_inclusive=False))
         for name, (lo, hi) in NOISE_STD_RANGES.items():
             msgs.append(check_range(name, float(getattr(self, name)), lo, hi))
-        msgs.append(check_range("mme_weight", float(self.mme_weight), 0.0, 1e12))
-        msgs.append(check_range("force_error_q", float(self.force_error_q), 0.0, 1e12,
-                                low_inclusive=False))
-        msgs.append(check_range("default_class", self.default_class, 1, 8))
-        msgs.append(check_range("q_class_min", self.q_class_min, 1, 8))
+        msgs += self.tuning.problems()
         return [m for m in msgs if m]
 
 
@@ -260,8 +183,12 @@ class SuspensionEstimator:
 
     def __init__(self, config: EstimatorConfig | None = None, **overrides):
         cfg = config or EstimatorConfig()
-        if overrides:
-            cfg = EstimatorConfig(**{**{f.name: getattr(cfg, f.name) for f in fields(cfg)}, **overrides})
+        if overrides:  # contract parameters and fixed choices (tuning.py) alike, by name
+            tuned = {k: v for k, v in overrides.items() if k in TUNING_FIELDS}
+            if tuned:
+                overrides = {k: v for k, v in overrides.items() if k not in tuned}
+                overrides["tuning"] = replace(cfg.tuning, **tuned)
+            cfg = replace(cfg, **overrides)
         problems = cfg.problems()
         if problems:
             raise ValueError("; ".join(problems))
@@ -270,30 +197,30 @@ class SuspensionEstimator:
         factory = composed_factory(int(cfg.road_estimator), int(cfg.mass_estimator))
         self.composed: RoadFilter | None = None if factory is None else factory(cfg)
         self.R = measurement_covariance(cfg.acc_sprung_noise_std, cfg.acc_unsprung_noise_std,
-                                        cfg.defl_noise_std if cfg.use_deflection else None)
+                                        cfg.defl_noise_std if cfg.tuning.use_deflection else None)
         dim_z = self.R.shape[0]
         self.acc_sampling = int(cfg.acc_sampling)
         self.n_states = N_STATES_AVG if self.acc_sampling == 1 else N_STATES
-        self._noise = cfg.model_noise
+        self._noise = cfg.tuning.model_noise
         if cfg.road_estimator == 2:  # the suspension-force error state, appended last
             self.n_states += 1
-            self._noise = replace(cfg.model_noise, q_f=float(cfg.force_error_q))
-        damping = cfg.road_estimator == 2 if cfg.estimate_damping is None else bool(cfg.estimate_damping)
-        self._road_hold = bool(cfg.road_hold == 1 or (cfg.road_hold == -1 and self.acc_sampling == 1))
+            self._noise = replace(cfg.tuning.model_noise, q_f=float(cfg.tuning.force_error_q))
+        damping = cfg.road_estimator == 2 if cfg.tuning.estimate_damping is None else bool(cfg.tuning.estimate_damping)
+        self._road_hold = bool(cfg.tuning.road_hold == 1 or (cfg.tuning.road_hold == -1 and self.acc_sampling == 1))
         if cfg.road_estimator == 1:
-            self.kf: LinearKF = MMEKF(self.n_states, dim_z, W=cfg.mme_weight, freeze_tol=cfg.freeze_tol,
-                                      fast=cfg.fast_gain, direct=self.acc_sampling == 0)
+            self.kf: LinearKF = MMEKF(self.n_states, dim_z, W=cfg.tuning.mme_weight, freeze_tol=cfg.tuning.freeze_tol,
+                                      fast=cfg.tuning.fast_gain, direct=self.acc_sampling == 0)
         else:
-            self.kf = LinearKF(self.n_states, dim_z, freeze_tol=cfg.freeze_tol, fast=cfg.fast_gain)
+            self.kf = LinearKF(self.n_states, dim_z, freeze_tol=cfg.tuning.freeze_tol, fast=cfg.tuning.fast_gain)
         self.kf.R = self.R
         # road_estimator 2: the exact-model KF at the identified mass and damping runs alongside
         # and gives the road below ``blend_hz`` (module doc); it gets the same update decisions
         self.anchor: LinearKF | None = None
         self.anchor_model: DiscreteModel | None = None
         if cfg.road_estimator == 2:
-            self.anchor = LinearKF(self.n_states - 1, dim_z, freeze_tol=cfg.freeze_tol, fast=cfg.fast_gain)
+            self.anchor = LinearKF(self.n_states - 1, dim_z, freeze_tol=cfg.tuning.freeze_tol, fast=cfg.tuning.fast_gain)
             self.anchor.R = self.R
-        self._blend = Blend(cfg.blend_hz)
+        self._blend = Blend(cfg.tuning.blend_hz)
         self._hold_left = 0.0  # s of the anchor hold left (see _after_update)
         self.anchor_resets = 0
         self._reset_times: deque = deque()
@@ -304,7 +231,7 @@ class SuspensionEstimator:
         bounds = (max(0.1 * cfg.m_s_nominal, lo), min(10.0 * cfg.m_s_nominal, hi))
         self.mass_est = (MassEstimator(cfg.m_s_nominal, cfg.k_s, cfg.c_s, cfg.forgetting_factor,
                                        damping, m_bounds=bounds) if cfg.mass_estimator == 1 else None)
-        self.classifier = RoadClassifier(gain=cfg.class_gain)
+        self.classifier = RoadClassifier(gain=cfg.tuning.class_gain)
         self.iri = IRIMeter(cfg.iri_segment, start=0.0)  # raises a ValueError naming iri_segment
         self.model: DiscreteModel | None = None
         self._model_key: tuple | None = None
@@ -437,26 +364,26 @@ class SuspensionEstimator:
     def assumed_class(self) -> int:
         if self.cfg.road_class > 0:
             return int(self.cfg.road_class)
-        return self.classifier.road_class or int(self.cfg.default_class)
+        return self.classifier.road_class or int(self.cfg.tuning.default_class)
 
     def _ensure_model(self, speed: float, h: float) -> None:
         key = self._model_key  # (h, class, speed band, mass) the model was last checked for
-        cls = self.cfg.road_class or self.classifier.road_class or self.cfg.default_class
+        cls = self.cfg.road_class or self.classifier.road_class or self.cfg.tuning.default_class
         if key is not None and h == key[0] and cls == key[1] and self.m_model == key[4] and self.c_model == key[5]:
             v = abs(speed)
             if key[2] <= (v if v > 0.1 else 0.1) <= key[3]:
                 return
         self._check_model(speed, h)
-        m, tol = self.model, self.cfg.speed_rebuild_tol
+        m, tol = self.model, self.cfg.tuning.speed_rebuild_tol
         self._model_key = (h, cls, m.speed - tol * m.speed, m.speed + tol * m.speed, self.m_model, self.c_model)
 
     def _check_model(self, speed: float, h: float) -> None:
         m = self.model
         cls = self.assumed_class
-        gd = iso8608.class_psd_n0(max(cls, int(self.cfg.q_class_min)))
+        gd = iso8608.class_psd_n0(max(cls, int(self.cfg.tuning.q_class_min)))
         v = max(abs(speed), 0.1)
         same_rest = (m is not None and m.h == h and m.gd_n0 == gd
-                     and abs(v - m.speed) <= self.cfg.speed_rebuild_tol * m.speed)
+                     and abs(v - m.speed) <= self.cfg.tuning.speed_rebuild_tol * m.speed)
         if same_rest and m.vehicle.m_s == self.m_model and (
                 self.anchor_model is None or self.anchor_model.vehicle.c_s == self.c_model):
             return
@@ -466,8 +393,8 @@ class SuspensionEstimator:
             v = m.speed  # a mass rebuild keeps the speed the buffered steps were filtered at
         self.model_builds += 1
         self.model = DiscreteModel.build(self.cfg.vehicle(self.m_model), v, gd, h,
-                                         self.cfg.road_model, self._noise,
-                                         self.cfg.use_deflection, self.acc_sampling,
+                                         self.cfg.tuning.road_model, self._noise,
+                                         self.cfg.tuning.use_deflection, self.acc_sampling,
                                          self._road_hold)
         if isinstance(self.kf, MMEKF):
             Gamma = np.zeros((self.n_states, 1))
@@ -478,8 +405,8 @@ class SuspensionEstimator:
         self.kf.stationary()
         if self.anchor is not None:
             am = self.anchor_model = DiscreteModel.build(
-                replace(self.cfg.vehicle(self.m_model), c_s=self.c_model), v, gd, h, self.cfg.road_model,
-                self.cfg.model_noise, self.cfg.use_deflection, self.acc_sampling, self._road_hold)
+                replace(self.cfg.vehicle(self.m_model), c_s=self.c_model), v, gd, h, self.cfg.tuning.road_model,
+                self.cfg.tuning.model_noise, self.cfg.tuning.use_deflection, self.acc_sampling, self._road_hold)
             self.anchor.set_model(am.Phi, am.Q, am.H, self.R)
             self.anchor.stationary()
 
@@ -499,7 +426,7 @@ class SuspensionEstimator:
         common mode is not left where the wrong-mass innovations pushed it. False if no
         snapshot applies (too old, or the model changed for another reason since)."""
         onset = self._onset
-        if self.time - onset > self.cfg.refilter_span:
+        if self.time - onset > self.cfg.tuning.refilter_span:
             return False
         snap = None
         for sn in self._snaps:
@@ -535,7 +462,7 @@ class SuspensionEstimator:
         if not self.anchor_trusted:
             return
         if partial:
-            self._hold_left = self.cfg.anchor_hold
+            self._hold_left = self.cfg.tuning.anchor_hold
         elif self._hold_left > 0.0:
             self._hold_left = max(self._hold_left - self._h, 0.0)
             if self._hold_left == 0.0:
@@ -547,8 +474,8 @@ class SuspensionEstimator:
                         kf.stationary()
         if self._hold_left > 0.0:
             self._align()
-        elif self.cfg.align_hz > 0.0:
-            self._align(min(2 * math.pi * self.cfg.align_hz * self._h, 1.0))
+        elif self.cfg.tuning.align_hz > 0.0:
+            self._align(min(2 * math.pi * self.cfg.tuning.align_hz * self._h, 1.0))
 
     def _align(self, gain: float = 1.0) -> None:
         """After an update without every channel: give the force-error filter the anchor's
@@ -565,7 +492,7 @@ class SuspensionEstimator:
     def _blend_step(self) -> None:
         a = self.anchor
         if self.anchor_trusted:
-            kf, g = self.kf, self.cfg.anchor_gate
+            kf, g = self.kf, self.cfg.tuning.anchor_gate
             y = self._blend.step(float(a.x[IZR] - kf.x[IZR]), self._h)
             P = kf.P
             if g > 0 and (y * y > g * g * P[IZR, IZR] or (a.x[IVS] - kf.x[IVS]) ** 2 > g * g * P[IVS, IVS]):
@@ -590,16 +517,16 @@ class SuspensionEstimator:
                     self._hold_left = 0.0
 
     def _episode_closed(self) -> bool:
-        return (self._confirmed_for >= self.cfg.refilter_confirm
-                or self.time - self._onset > self.cfg.refilter_span)
+        return (self._confirmed_for >= self.cfg.tuning.refilter_confirm
+                or self.time - self._onset > self.cfg.tuning.refilter_span)
 
     def _keep_snapshots(self) -> None:
         """Snapshot the filter every snapshot_interval s; drop what no re-filter can use."""
         cfg, snaps = self.cfg, self._snaps
-        if snaps and self.time - snaps[-1][0] < cfg.snapshot_interval - 1e-12:
+        if snaps and self.time - snaps[-1][0] < cfg.tuning.snapshot_interval - 1e-12:
             return
         self._snap()
-        old = self.time - cfg.refilter_span - cfg.refilter_lookback
+        old = self.time - cfg.tuning.refilter_span - cfg.tuning.refilter_lookback
         while len(snaps) > 1 and snaps[1][0] <= old:
             snaps.popleft()
         rec, k0 = self._record, snaps[0][1]
@@ -609,7 +536,7 @@ class SuspensionEstimator:
     def _live(self, vals: tuple[float, ...], h: float) -> list[bool]:
         """Per channel: finite and not frozen. Frozen = the value has not changed (bit for bit)
         for frozen_time s: a noisy sensor never repeats itself, a stuck or disconnected one does."""
-        last, same, lim = self._z_last, self._same_time, self.cfg.frozen_time
+        last, same, lim = self._z_last, self._same_time, self.cfg.tuning.frozen_time
         ok = []
         isfinite = math.isfinite
         for i, v in enumerate(vals):
@@ -636,10 +563,10 @@ class SuspensionEstimator:
         y = z - kf.H @ xp
         S = np.einsum("ij,jk,ik->i", kf.H, Pp, kf.H) + np.diag(kf.R)
         if kf._ss_gain is not None:
-            hold = np.array(self._outlier_time) < self.cfg.gate_hold
+            hold = np.array(self._outlier_time) < self.cfg.tuning.gate_hold
             S = np.where(hold, np.minimum(S, np.diag(kf._ss_gain[1])), S)
         ratio = y * y / S
-        ok = ratio <= self.cfg.outlier_nis
+        ok = ratio <= self.cfg.tuning.outlier_nis
         if ok.all():
             ok[int(np.argmax(ratio))] = False
         return ok
@@ -660,7 +587,7 @@ class SuspensionEstimator:
         if not math.isfinite(speed):
             speed = self.model.speed if self.model is not None else 0.0
         status = STATUS_OK
-        vals = ((float(acc_sprung), float(acc_unsprung), float(deflection)) if cfg.use_deflection
+        vals = ((float(acc_sprung), float(acc_unsprung), float(deflection)) if cfg.tuning.use_deflection
                 else (float(acc_sprung), float(acc_unsprung)))
         z = np.array(vals)
         self.time += h
@@ -677,7 +604,7 @@ class SuspensionEstimator:
         outliers = False  # some finite, live channel disagreed with the prediction
         if all_live:
             kf.step(z)
-            if kf.nis > cfg.outlier_nis:
+            if kf.nis > cfg.tuning.outlier_nis:
                 # undo; find the outlying channels below and update with the others
                 kf.restore(x_prev, P_prev, st_prev)
                 valid = self._channel_ok(z)
@@ -688,7 +615,7 @@ class SuspensionEstimator:
             if valid.any():
                 x_pred, P_pred = kf.x, kf.P
                 kf.update_rows(z, np.flatnonzero(valid))
-                if kf.nis > cfg.outlier_nis:  # the remaining channels disagree too: predict
+                if kf.nis > cfg.tuning.outlier_nis:  # the remaining channels disagree too: predict
                     kf.x, kf.P = x_pred, P_pred
                     valid[:] = False
         rejected_all = outliers and not valid.any()
@@ -706,7 +633,7 @@ class SuspensionEstimator:
         self._rejected_time = self._rejected_time + h if rejected_all else 0.0
         # a channel the filter has disagreed with for reinit_after s while the others agree: the
         # filter has drifted (e.g. after accepting the first samples of a burst), not the sensor
-        if self._rejected_time >= cfg.reinit_after or max(self._outlier_time) >= cfg.reinit_after:
+        if self._rejected_time >= cfg.tuning.reinit_after or max(self._outlier_time) >= cfg.tuning.reinit_after:
             self._outlier_time = [0.0] * len(self._outlier_time)
             # every finite channel disagrees with the prediction for reinit_after s: diverged
             self.reset_state()
@@ -717,16 +644,16 @@ class SuspensionEstimator:
             self.reset_state()
             status = STATUS_REINIT
         self._blend_step()
-        if cfg.refilter_span > 0 and status != STATUS_REINIT:
+        if cfg.tuning.refilter_span > 0 and status != STATUS_REINIT:
             self._record.append((self._steps, z, rows))
 
         if self.mass_est is not None:
             # substitute the filter's own value for a rejected body acceleration or deflection
             ok_a = bool(valid[0])
-            ok_d = bool(valid[2]) if cfg.use_deflection else math.isfinite(deflection)
+            ok_d = bool(valid[2]) if cfg.tuning.use_deflection else math.isfinite(deflection)
             me = self.mass_est
-            if (not (ok_a and ok_d) and live[0] and (live[2] if cfg.use_deflection else ok_d)
-                    and abs(me.mass - self.m_model) > cfg.mass_trust_sensors * self.m_model):
+            if (not (ok_a and ok_d) and live[0] and (live[2] if cfg.tuning.use_deflection else ok_d)
+                    and abs(me.mass - self.m_model) > cfg.tuning.mass_trust_sensors * self.m_model):
                 # the road filter rejects a live sensor while the mass estimate already says its
                 # model mass is off: the model, not the sensor, is the likely culprit, and the
                 # RLS (whose regressor does not use the road filter) must go on learning, else a
@@ -742,37 +669,37 @@ class SuspensionEstimator:
             if me.resets != self._resets_seen:  # a payload change detected
                 self._resets_seen = me.resets
                 if self._episode_closed():  # else: still part of the open one (e.g. the start)
-                    self._onset = self.time - cfg.refilter_lookback
+                    self._onset = self.time - cfg.tuning.refilter_lookback
                     self._confirmed_for = 0.0
             if self._nonlinear and self.m_model != cfg.m_s_nominal:
                 self.m_model = cfg.m_s_nominal  # see _blend_step
                 self._ensure_model(speed, h)
-            if cfg.mass_feedback and me.samples * h >= cfg.mass_warmup and not self._nonlinear:
+            if cfg.mass_feedback and me.samples * h >= cfg.tuning.mass_warmup and not self._nonlinear:
                 m = me.mass_slow
                 sd = me.mass_slow_std(h)
-                thr = max(cfg.mass_rebuild_tol * self.m_model, cfg.mass_rebuild_sigma * sd)
+                thr = max(cfg.tuning.mass_rebuild_tol * self.m_model, cfg.tuning.mass_rebuild_sigma * sd)
                 agree = abs(m - self.m_model) <= thr
                 # the model mass is confirmed by enough data: closes the re-filter episode
                 # (road_estimator 2: and the damping estimated, whose first value also re-filters)
                 agree_all = agree and math.isfinite(sd) and (self.anchor is None or me.damping_identified)
                 self._confirmed_for = self._confirmed_for + h if agree_all else 0.0
-                if not agree and self.time - self._last_rebuild >= cfg.mass_rebuild_interval:
+                if not agree and self.time - self._last_rebuild >= cfg.tuning.mass_rebuild_interval:
                     self.m_model = m
                     self._last_rebuild = self.time
                     self.mass_rebuilds += 1
-                    if cfg.refilter_span > 0:
+                    if cfg.tuning.refilter_span > 0:
                         self._ensure_model(speed, h)  # rebuild now and re-filter the change
                         if not self._episode_closed():
                             self._refilter()
                 c = me.damping
-                if (self.anchor is not None and abs(c - self.c_model) > cfg.damping_rebuild_tol * self.c_model
-                        and self.time - self._last_rebuild >= cfg.mass_rebuild_interval):
+                if (self.anchor is not None and abs(c - self.c_model) > cfg.tuning.damping_rebuild_tol * self.c_model
+                        and self.time - self._last_rebuild >= cfg.tuning.mass_rebuild_interval):
                     self.c_model = c  # the anchor filter at the identified damping
                     self._last_rebuild = self.time
                     self._ensure_model(speed, h)
-                    if cfg.refilter_span > 0 and not self._episode_closed():
+                    if cfg.tuning.refilter_span > 0 and not self._episode_closed():
                         self._refilter()
-        if cfg.refilter_span > 0:
+        if cfg.tuning.refilter_span > 0:
             self._keep_snapshots()
         x = kf.x.tolist()
         if self.anchor_trusted:
@@ -780,7 +707,7 @@ class SuspensionEstimator:
             x[IZR] += low
             x[IZS] += low
             x[IZU] += low
-            w = self._hold_left / self.cfg.anchor_hold if self.cfg.anchor_hold > 0 else 0.0
+            w = self._hold_left / self.cfg.tuning.anchor_hold if self.cfg.tuning.anchor_hold > 0 else 0.0
             if w > 0.0:  # the anchor hold (_after_update)
                 xa = self.anchor.x.tolist()
                 x = [w * xa[i] + (1.0 - w) * x[i] for i in range(N_STATES)]
@@ -802,11 +729,11 @@ class SuspensionEstimator:
             s0 = self._class_height_std.get(cls)
             if s0 is None:
                 s0 = self._class_height_std[cls] = iso_road_height_std(iso8608.class_psd_n0(cls))
-            g = reference_step_response(t_rel, cfg.road_model)
+            g = reference_step_response(t_rel, cfg.tuning.road_model)
             off = self._offset
-            if (off is None and cfg.start_offset and g != 0.0 and status != STATUS_REINIT
+            if (off is None and cfg.tuning.start_offset and g != 0.0 and status != STATUS_REINIT
                     and not isinstance(kf, MMEKF)):
-                off = self._offset = StartOffset(iso8608.N_MIN, cfg.road_model.f_ref, s0,
+                off = self._offset = StartOffset(iso8608.N_MIN, cfg.tuning.road_model.f_ref, s0,
                                                  0.0 if self._from_rest else var)
             if off is not None:
                 if off.due(t_rel, h) and math.isfinite(x[IZR]) and math.isfinite(var):
@@ -870,10 +797,10 @@ class SuspensionEstimator:
             ok = live[0] and live[2]
             me.update(vals[0] if live[0] else 0.0, vals[2] if live[2] else x[IZS] - x[IZU], h,
                       use=ok and status != STATUS_REINIT)
-            if cfg.mass_feedback and me.samples * h >= cfg.mass_warmup:
+            if cfg.mass_feedback and me.samples * h >= cfg.tuning.mass_warmup:
                 m, sd = me.mass_slow, me.mass_slow_std(h)
-                if (abs(m - self.m_model) > max(cfg.mass_rebuild_tol * self.m_model, cfg.mass_rebuild_sigma * sd)
-                        and self.time - self._last_rebuild >= cfg.mass_rebuild_interval):
+                if (abs(m - self.m_model) > max(cfg.tuning.mass_rebuild_tol * self.m_model, cfg.tuning.mass_rebuild_sigma * sd)
+                        and self.time - self._last_rebuild >= cfg.tuning.mass_rebuild_interval):
                     self.m_model = m
                     self._last_rebuild = self.time
                     self.mass_rebuilds += 1

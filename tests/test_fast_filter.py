@@ -118,7 +118,9 @@ def test_frozen_gain_equals_full_recursion(kw):
     assert fast.kf.frozen  # back at the fixed point (frozen) after the last disturbance
     assert fast.anchor is None or fast.anchor.frozen
     assert np.array_equal(a[:, -1], b[:, -1])  # the same rejection decisions
-    np.testing.assert_allclose(a[:, :6], b[:, :6], rtol=0, atol=1e-9)
+    # the frozen gain is the fixed point to freeze_tol (1e-8 relative): states agree to about
+    # that relative size (a few 1e-9 on a body velocity of 1.4 m/s after a re-filter)
+    np.testing.assert_allclose(a[:, :6], b[:, :6], rtol=1e-8, atol=1e-9)
     np.testing.assert_allclose(a[:, 6], b[:, 6], rtol=1e-6)  # road_height_std
     np.testing.assert_allclose(a[:, 7], b[:, 7], rtol=1e-9)  # sprung mass
     if kw.get("m_s_nominal"):

@@ -1,0 +1,106 @@
+"""The estimators' fixed choices: every knob of ``SuspensionEstimator`` that is not a parameter
+of the FMU, with the reason for its value, in one place.
+
+Each was chosen once for all ISO classes, speeds and masses (the reasons below give the
+measurements behind them); none is meant to be tuned per vehicle or per road, which is why the
+FMU does not expose them. Studies, benchmarks and tests that probe a choice pass a changed copy:
+``SuspensionEstimator(blend_hz=1e-9)`` or ``EstimatorConfig(tuning=replace(TUNING, ...))``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from ..plant.vehicle import check_range
+from .model import ModelNoise, RoadModel
+
+
+@dataclass(frozen=True)
+class Tuning:
+    """Fixed choices of the estimator (SI units; see each comment for the reason)."""
+
+    # the vehicle sees the road held over the step at its end-of-step value (co-simulation
+    # convention); -1 = only with acc_sampling = 1, 0 = never, 1 = always
+    road_hold: int = -1
+    use_deflection: bool = True  # use the deflection sensor in the road filter
+    mme_weight: float = 10.0  # W of MME&KF, (m/s^2)^-2
+    # RLS on [m_s, c] instead of m_s; None = with road_estimator 2 (which does not trust c_s)
+    estimate_damping: bool | None = None
+    # intensity of the suspension-force error state of road_estimator 2 per unit speed, N^2/m
+    # (model.force_error_matrices): 1e4 N^2/s at 40 km/h, chosen on the linear plant with c_s
+    # +-30 % and k_s +-15 % against the cost on the exact vehicle (docs/robustness.md)
+    force_error_q: float = 900.0
+    # road_estimator 2: corner (Hz) below which the road comes from the exact-model KF at the
+    # identified mass and damping (the anchor) instead of the force-error filter, whose free
+    # force error leaves the body's absolute position to the double-integrated accelerometer
+    # (raw road error 38 mm against 4.4 mm on ISO C at 40 km/h; module doc)
+    blend_hz: float = 1.0
+    damping_rebuild_tol: float = 0.03  # relative change of the identified damping that rebuilds the anchor
+    # road_estimator 2: each step the force-error filter's common velocity (v_s, v_u, v_r alike)
+    # moves towards the anchor's by 2 pi align_hz h: its own is pinned only by the 0.01 Hz
+    # reference and wanders (and a burst on a channel kicks it). ISO C, 40 km/h, HP error on the
+    # exact vehicle 2.59 / 2.42 % and with c_s -30 % 3.28 / 3.03 % at 0 / 1 Hz
+    align_hz: float = 1.0
+    # road_estimator 2: the anchor restarts from the force-error filter's state when it differs
+    # from it by more than this many of the force-error filter's own std (road height or body
+    # velocity); 0 = never
+    anchor_gate: float = 5.0
+    anchor_hold: float = 0.5  # s: after an update without every channel the output fades from the anchor's
+    # Mass feedback: the road filter is rebuilt at the since-last-change least-squares mass
+    # (MassEstimator.mass_slow) when it differs from the model mass by more than
+    # max(mass_rebuild_tol, mass_rebuild_sigma standard errors): a significant AND relevant change.
+    mass_rebuild_tol: float = 0.001  # relative; 0.6 % model-mass error cost ~2 % HP error on ISO B
+    mass_rebuild_sigma: float = 3.0
+    mass_warmup: float = 0.2  # s of RLS data before its estimate is fed back
+    # relative difference of the RLS mass from the model mass above which the RLS keeps using
+    # live body-acceleration and deflection samples that the road filter rejects
+    mass_trust_sensors: float = 0.05
+    mass_rebuild_interval: float = 0.02  # s, minimum time between two mass rebuilds (cost cap)
+    default_class: int = 3  # class assumed while road_class = 0 and none identified yet
+    # Q is set from the class max(assumed class, q_class_min). Scheduling Q down to the class
+    # of a smooth road did NOT help: a smaller road intensity pins the unobservable common drift
+    # of body, wheel and road harder and the filter shrinks the road in band (ISO B, 40 km/h,
+    # true mass 230 kg: HP error 11.1 % with the Q of B, 1.7 % with D, 1.4 % with F; switching
+    # Q at the first identified class also kicks the drift). So classes below F share F's Q.
+    q_class_min: int = 6
+    speed_rebuild_tol: float = 0.01  # relative speed change that re-discretises
+    outlier_nis: float = 1e4  # NIS above which a measurement is rejected as an outlier
+    # Re-initialise when every finite channel has been rejected for this long (a diverged
+    # filter); a burst of bad samples on some channels is predicted through instead.
+    reinit_after: float = 0.2  # s
+    # s of an outlier streak on a channel during which its gate uses at most the stationary
+    # innovation variance; after it the actual (grown) variance, so that a channel the filter
+    # itself has drifted away from is taken back
+    gate_hold: float = 0.1
+    frozen_time: float = 0.05  # s a channel may repeat its value bit for bit before it is rejected
+    # The road filter starts at the stationary covariance of its model (DARE), again whenever the
+    # model is rebuilt or the filter re-initialised, and keeps its gain frozen there (kalman.py);
+    # after a skipped or partial update it runs the full recursion until the posterior
+    # covariance is back within freeze_tol (relative) of the fixed point.
+    freeze_tol: float = 1e-8
+    fast_gain: bool = True  # False: the full covariance recursion every step (same estimates)
+    road_model: RoadModel = field(default_factory=RoadModel)
+    # estimate the road height the car started on from the road estimate (start_offset.py; KF
+    # only) and add it back as it shows through the reference; False: report -z_0 g(t) as error
+    start_offset: bool = True
+    model_noise: ModelNoise = field(default_factory=ModelNoise)
+    class_gain: float = 1.0  # in-band amplitude gain of the road estimate (class correction)
+    # Re-filtering after a mass rebuild (see the module doc): when the road filter is rebuilt at
+    # a new mass within refilter_span s of the onset of the mass change (the start of the run, or
+    # the RLS change detection minus refilter_lookback s), the filter is re-run from a snapshot
+    # taken before the onset over the buffered measurements with the new model. 0 disables.
+    refilter_span: float = 2.0  # s
+    refilter_lookback: float = 0.1  # s before the RLS change detection (it comes up to 85 ms late)
+    refilter_confirm: float = 0.5  # s of agreement of data and model mass that close an episode
+    snapshot_interval: float = 0.02  # s between filter snapshots
+
+    def problems(self) -> list[str]:
+        """Messages naming each invalid value and its allowed range (empty when valid)."""
+        msgs = [check_range("mme_weight", float(self.mme_weight), 0.0, 1e12),
+                check_range("force_error_q", float(self.force_error_q), 0.0, 1e12, low_inclusive=False),
+                check_range("default_class", self.default_class, 1, 8),
+                check_range("q_class_min", self.q_class_min, 1, 8)]
+        return [m for m in msgs if m]
+
+
+TUNING = Tuning()
+TUNING_FIELDS = frozenset(TUNING.__dataclass_fields__)
