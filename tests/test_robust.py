@@ -108,3 +108,32 @@ def test_default_on_the_air_spring_plant_told_only_its_linearisation():
     old = road_scores(t, estimate(meas, road_estimator=0, **told)[0], zr, warmup=WARMUP)
     assert new["err_std_hp_pct"] < 5.0 and old["err_std_hp_pct"] > 3 * new["err_std_hp_pct"], (new, old)
     assert 0.9 < new["gain_hp"] < 1.1
+
+
+@pytest.mark.parametrize("spring", [False, True])
+def test_mass_regression_fits_an_asymmetric_damper_and_an_air_spring(spring):
+    """With the damping estimated, the mass regression also fits the damper's asymmetry and
+    progression and the spring's curvature (estimators/mass.py). A 3:1 damper without knees on
+    a linear spring: c and c_a = (c_r - c_c)/2 come out near the plant's, and the mass near the
+    true 410 kg, where the paper's [m_s, c] on the very same filtered sums is far off."""
+    from suspension_estimation.estimators.mass import MassEstimator
+    from suspension_estimation.plant.nonlinear_car import NonlinearQuarterCar
+    from suspension_estimation.plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_DAMPER, PiecewiseDamper
+
+    damper = DEFAULT_DAMPER if spring else PiecewiseDamper(3000.0, 1000.0, 1e3, 1e3, 3000.0, 1000.0)
+    car = NonlinearQuarterCar(NOMINAL, DEFAULT_AIR_SPRING if spring else None, damper, noise=SensorNoise(),
+                              noise_seed=7)
+    road = SyntheticRoad(iso8608.class_psd_n0(3), seed=5)
+    car.settle(road.height(0.0))
+    lin = car.linearisation()
+    me = MassEstimator(NOMINAL.m_s, lin.k_s, lin.c_s, estimate_damping=True)
+    for k in range(int(round(20.0 / H))):
+        car.step(road.height(SPEED * (k + 1) * H), H)
+        a_s, _, d = car.measured
+        me.update(a_s, d, H)
+    two = np.linalg.solve(me._S2pp[:2, :2], me._S2py[:2])  # the paper's theta = [m_s, c]
+    assert abs(me.mass_slow / NOMINAL.m_s - 1) < 0.03, (me.mass_slow, me.damping, me.extra_hat)
+    assert abs(two[0] / NOMINAL.m_s - 1) > 0.08, two
+    if not spring:
+        assert me.damping == pytest.approx(2000.0, rel=0.1)
+        assert me.damping_asymmetry == pytest.approx(1000.0, rel=0.15)
