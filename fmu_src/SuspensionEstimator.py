@@ -2,12 +2,12 @@
 from __future__ import annotations
 
 from suspension_estimation.estimators.suspension import EstimatorConfig, SuspensionEstimator as Core
+from suspension_estimation.suspension_fmi.contract import SUSPENSION_ESTIMATOR
 from suspension_estimation.suspension_fmi.slave import ContractSlave
 
-# contract parameters that configure the core under the same name
-_CONFIG = ("m_s_nominal", "m_u", "k_s", "k_t", "c_s", "road_estimator", "mass_estimator", "mass_feedback",
-           "forgetting_factor", "road_class", "acc_sprung_noise_std", "acc_unsprung_noise_std", "defl_noise_std",
-           "acc_sampling", "iri_segment")
+# every contract parameter of this FMU configures the core under the same name
+# (tests/test_interface.py: the same names and defaults as EstimatorConfig)
+_CONFIG = tuple(v.name for v in SUSPENSION_ESTIMATOR if v.causality == "parameter")
 
 
 class SuspensionEstimator(ContractSlave):

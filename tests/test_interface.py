@@ -118,3 +118,15 @@ def test_a_registered_filter_is_composed(registered):
     f.step = lambda *a: setattr(f, "x", [math.nan] * 6)
     o = est.step(*meas[-1], 40 / 3.6, 1e-3)
     assert o["status"] == 2 and math.isfinite(o["road_height_est"])
+
+
+def test_estimator_config_is_the_contract_parameters():
+    """EstimatorConfig holds exactly the FMU's parameters, with the contract's defaults; every
+    other knob is a fixed choice in estimators/tuning.py, not a parameter."""
+    from dataclasses import fields
+
+    params = {v.name: v.start for v in SUSPENSION_ESTIMATOR if v.causality == "parameter"}
+    cfg = EstimatorConfig()
+    assert {f.name for f in fields(cfg)} - {"tuning"} == set(params)
+    for name, start in params.items():
+        assert getattr(cfg, name) == start, name
