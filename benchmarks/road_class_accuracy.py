@@ -13,7 +13,7 @@ road seeds the training never saw (201, 202) with a test seed of their own, in f
 4. roughness at the class value, the extreme vehicles only (every parameter at one end of its
    range: the 32 corners, in turn).
 
-Paper 004's scenario: the block-by-block accuracy of ``harness.vb_study.paper_classifier`` on
+Paper 004's scenario: the block-by-block accuracy of ``harness.studies.vb.paper_classifier`` on
 its E / C / A scenario (other seed), every block and without the first block after a switch.
 
 Rows are the true class, columns the predicted one. Exits non-zero with a one-line reason on bad
@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
                   f"of {np.sum(off >= 0.5)} blocks\n")
         print(confusion(truth, pred, classes) + "\n")
 
-    from suspension_estimation.harness import vb_study as V
+    from suspension_estimation.harness.studies import vb as V
 
     pm = V.paper_classifier()
     F, B, H = V.paper_model()

@@ -69,6 +69,7 @@ from .model import (IVR, IVS, IVU, IZR, IZS, IZU, N_STATES, N_STATES_AVG, Discre
 from .road_class import RoadClassifier
 from .start_offset import StartOffset
 from .steady_state import raw_error_variance
+from .vb_akf import vb_problems
 
 OUTPUTS = ("road_height_est", "road_velocity_est", "road_height_std", "z_s_est", "v_s_est",
            "z_u_est", "v_u_est", "susp_deflection_est", "tire_deflection_est", "sprung_mass_est",
@@ -218,6 +219,11 @@ class EstimatorConfig:
     refilter_confirm: float = 0.5  # s of agreement of data and model mass that close an episode
     snapshot_interval: float = 0.02  # s between filter snapshots
     iri_segment: float = 100.0  # m, segments of the IRI of the road estimate (plant/iri.py)
+    # road_estimator 4 (VB-AKF, vb_akf.VBRoadFilter): fixed-point iterations per step, forgetting
+    # factor of the R posterior, weight of the nominal prediction in the PECM prior (0 = R only)
+    vb_iterations: int = 6
+    vb_forgetting: float = 1.0 - math.exp(-4.0)
+    vb_tau: float = 0.0
 
     def vehicle(self, m_s: float | None = None) -> Vehicle:
         return Vehicle(m_s=self.m_s_nominal if m_s is None else m_s, m_u=self.m_u, k_s=self.k_s,
@@ -247,6 +253,7 @@ class EstimatorConfig:
                                 low_inclusive=False))
         msgs.append(check_range("default_class", self.default_class, 1, 8))
         msgs.append(check_range("q_class_min", self.q_class_min, 1, 8))
+        msgs += vb_problems(self)
         return [m for m in msgs if m]
 
 
@@ -891,7 +898,7 @@ class SuspensionEstimator:
         out["susp_deflection_est"] = x[IZS] - x[IZU]
         out["tire_deflection_est"] = x[IZU] - x[IZR]
         out["sprung_mass_est"] = mass
-        out["road_class_est"] = int(self.classifier.road_class)
+        out["road_class_est"] = int(self.classifier.road_class if f.road_class is None else f.road_class)
         out["nis"] = float(f.nis)
         out["status"] = status
         out["iri_est"] = self.iri.update(self.distance, x[IZR])

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from suspension_estimation.harness.smoothing import FilterRecord, rts_smooth
-from suspension_estimation.harness.vb_study import paper_model
+from suspension_estimation.harness.studies.vb import paper_model
 
 
 def _data(K, seed, q=0.05, r=(0.01, 1e-4, 1e-3)):
