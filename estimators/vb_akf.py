@@ -43,9 +43,11 @@ Choices where the paper is silent or differs from its code (the code is followed
 - rho = 1 - e^-4 gives an R memory of 1 / (1 - rho) = 55 steps; tau = 0.8; N = 6.
 - tau = inf switches the PECM adaptation off (Sigma = P^- in every iteration): the R-only
   VB-AKF of Sarkka and Nummenmaa (IEEE TAC 2009), the paper's "VBAKF-R" comparison filter up to
-  its choice of the R forgetting. On our 6-state model (docs/vb-akf.md) tau = 0.8 pulls the
-  PECM towards the posterior (Sigma = (0.8 P^- + P + d d') / 1.8), its R estimate does not
-  follow a 4x noise growth and it loses to the fixed-R KF; tau = inf tracks the changed R.
+  its choice of the R forgetting. On our 6-state model at 5 ms with the paper's prior weight 5
+  (``harness.studies.vb.noise_growth``, docs/vb-akf.md) tau = 0.8 pulls the PECM towards the
+  posterior (Sigma = (0.8 P^- + P + d d') / 1.8), its R estimate does not follow a 4x noise
+  growth and it loses to the fixed-R KF; tau = inf tracks the changed R. ``VBRoadFilter`` (the
+  FMU's road_estimator 4) restarts R with a larger weight and there both follow it.
 - The covariance update is the simple form Sigma - K H Sigma (the code's), symmetrised.
 
 ``vb_update`` works on a single filter or on a stack of independent filters (leading axes:
@@ -315,8 +317,10 @@ class VBRoadFilter(RoadFilter):
       the sensor noise does not depend on the road, so the class does not change the nominal R;
       as in the authors' code the R prior restarts at the nominal when the class changes.
     - ``vb_iterations`` = N, ``vb_forgetting`` = rho, ``vb_tau`` = tau (0: no PECM adaptation,
-      tau = inf of ``vb_update``: the FMU default, because on our model tau = 0.8 does not follow a
-      sensor whose noise grows and loses to the KF; docs/vb-akf.md).
+      tau = inf of ``vb_update``, run by ``vb_update_r_only``: the FMU default. Through the FMU
+      both follow a body accelerometer whose noise grows 4x and beat the KF; R only is better on
+      the deflections (0.44-0.47x the KF's against 0.56-0.63x with tau = 0.8) and cheaper;
+      docs/vb-akf.md).
     - The road is held over the step in the model (``road_hold`` -1 or 1; 0 = not), the
       co-simulation convention of our plant FMU. The KF family holds it only with
       ``acc_sampling`` 1 and lives with the mismatch at 1 ms; the VB takes the innovations that
@@ -329,8 +333,8 @@ class VBRoadFilter(RoadFilter):
     - A step with a channel missing (``rows``): the nominal prediction, then a plain KF update of
       the valid rows with the current R estimate; the R posterior is left as it was (no
       forgetting, no data). No channel: prediction only.
-    - Start and ``reset``: x = 0, P the stationary prior covariance of the KF of the nominal model
-      (``kalman.stationary_covariance``), the R prior at the nominal.
+    - Start and ``reset``: x = 0, P the stationary posterior covariance of the KF of the nominal
+      model (``kalman.stationary_covariance``), the R prior at the nominal.
     Attributes beyond ``RoadFilter``'s: ``road_class`` (the class in force, for ``road_class_est``),
     ``R_estimate`` (the IW mean of R), ``class_changes``."""
 
@@ -351,7 +355,8 @@ class VBRoadFilter(RoadFilter):
         self.R_nominal = measurement_covariance(cfg.acc_sprung_noise_std, cfg.acc_unsprung_noise_std,
                                                 cfg.defl_noise_std if cfg.use_deflection else None)
         self.fixed_class = int(cfg.road_class)
-        self.classifier = ResponseClassifier(RESPONSE_MODEL, initial=int(cfg.default_class)) if self.fixed_class == 0 else None
+        self.classifier = (ResponseClassifier(RESPONSE_MODEL, initial=int(cfg.default_class))
+                           if self.fixed_class == 0 else None)
         self.road_class = self.fixed_class or int(cfg.default_class)
         self.m_s = float(cfg.m_s_nominal)
         self.h: float | None = None

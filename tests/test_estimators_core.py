@@ -230,7 +230,7 @@ def test_online_class_from_estimated_road():
     ("forgetting_factor", 1.01, "forgetting_factor"),
     ("m_u", -1.0, "m_u = -1.0 is outside the allowed range [1, 5000]"),
     ("k_s", 0.0, "k_s"),
-    ("road_estimator", 5, "road_estimator = 5 is outside the allowed range [0, 2]"),
+    ("road_estimator", 99, "road_estimator = 99 is outside the allowed values {0 = Kalman filter"),
     ("mass_estimator", -1, "mass_estimator"),
     ("road_class", 9, "road_class = 9 is outside the allowed range [0, 8]"),
     ("defl_noise_std", 0.0, "defl_noise_std"),
