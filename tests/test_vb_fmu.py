@@ -76,19 +76,15 @@ def test_a_loosening_mount_is_followed_and_beats_the_kf_through_the_fmu(dist):
     error had its R not adapted (the KF with the same held-road model, run on the core)."""
     from suspension_estimation.harness.studies.runner import RunSpec
 
-    V.LOOSE_CHANGE, saved = 3.0, V.LOOSE_CHANGE
-    try:
-        for seed in (7, 8):
-            r = V.loosening_run(RunSpec("vb_loose", 3, seed, 8.0, 1.0, 1e-3, str(dist), speed=40 / 3.6))
-            after, before = r["rmse_after"], r["rmse_before"]
-            assert after["VB"][0] < 0.75 * after["KF"][0]  # deflection (measured 0.44-0.45)
-            assert after["VB"][3] < 0.75 * after["KF"][3]  # v_u
-            assert after["VB"][0] < 0.8 * after[V.CORE_KF_HELD][0]  # the adaptation's share
-            assert before["VB"][0] < 1.3 * before[V.CORE_KF_HELD][0]  # no loss while nothing changes
-            counts = r["classes"]["VB"]  # ISO C found from the response on most samples
-            assert counts.get(3, 0) > 0.6 * sum(counts.values()), counts
-    finally:
-        V.LOOSE_CHANGE = saved
+    for seed in (7, 8):
+        r = V.loosening_run(RunSpec("vb_loose", 3, seed, 8.0, 3.0, 1e-3, str(dist), speed=40 / 3.6))
+        after, before = r["rmse_after"], r["rmse_before"]
+        assert after["VB"][0] < 0.75 * after["KF"][0]  # deflection (seeds 1-5: 0.44-0.47)
+        assert after["VB"][3] < 0.75 * after["KF"][3]  # v_u (seeds 1-5: 0.39-0.49)
+        assert after["VB"][0] < 0.8 * after[V.CORE_KF_HELD][0]  # the adaptation's share
+        assert before["VB"][0] < 1.3 * before[V.CORE_KF_HELD][0]  # no loss while nothing changes
+        counts = r["classes"]["VB"]  # ISO C found from the response on most samples
+        assert counts.get(3, 0) > 0.6 * sum(counts.values()), counts
 
 
 @pytest.mark.parametrize("road_class", [2, 4])

@@ -470,14 +470,16 @@ def loosening_measurements(seed: int, road_class: int = 3, speed: float = 40 / 3
 
 
 def loosening_run(spec) -> dict:
-    """One loosening-mount run (``RunSpec`` kind "vb_loose": road class, seed, step, speed, dist)
+    """One loosening-mount run (``RunSpec`` kind "vb_loose": road class, seed, step, speed, dist;
+    ``warmup`` is the instant of the noise growth, s)
     through the built SuspensionEstimator.fmu: one instance per ``LOOSE_ESTIMATORS``, all fed the
     same measurements. RMSE of ``LOOSE_STATES`` before the change (1 s .. t_change) and from 1 s
     after it to the end, per instance."""
     from ..cosim import CoSimulation, System
 
     h = spec.step
-    meas, truth = loosening_measurements(spec.seed, spec.road_class, spec.speed, h, spec.duration)
+    t_change = spec.warmup  # the instant of the noise growth (s)
+    meas, truth = loosening_measurements(spec.seed, spec.road_class, spec.speed, h, spec.duration, t_change)
     dist = Path(spec.dist)
     comps = {name: dist / "SuspensionEstimator.fmu" for name in LOOSE_ESTIMATORS}
     wires = ("acc_sprung", "acc_unsprung", "susp_deflection", "vehicle_speed")
@@ -492,7 +494,7 @@ def loosening_run(spec) -> dict:
         res = sim.run(spec.duration, h)
     wall = time.perf_counter() - t0
     t = res["time"][1:]  # the row after doStep(t_k, h): the instant of measurement k
-    k0, k1, k2 = (int(round(x / h)) for x in (1.0, LOOSE_CHANGE, LOOSE_CHANGE + 1.0))
+    k0, k1, k2 = (int(round(x / h)) for x in (1.0, t_change, t_change + 1.0))
     out = {"timing": {"us_per_step": 1e6 * wall / len(t)}, "rmse_before": {}, "rmse_after": {}, "classes": {},
            "rmse_after_rts": {}}
     # every instance's recorded outputs smoothed by the same RTS pass, each with its own model
