@@ -1,7 +1,7 @@
 """Per-step cost of the cores, of the FMUs through FMPy and of the closed loop in the harness.
 
     .venv/bin/python benchmarks/run.py [--repeat N] [--steps N] [--loop-time S] [--loop-repeat N]
-                                       [--json PATH] [--dist DIR] [--profile]
+                                       [--json PATH] [--dist DIR] [--profile] [--vb-iterations N]
 
 Everything runs at a 1 ms step on the default scenario's data (ISO 8608 class C, 40 km/h, 410 kg,
 seed 1). Every figure is the median over ``--repeat`` timed passes, each after an untimed warm-up
@@ -10,12 +10,15 @@ from a fresh object, so it includes the start-up transient of ``--steps`` sample
 
 - cores (plain Python, no FMI): the road-profile filter alone (KF; MME&KF: road_class = 3,
   no mass estimator), the default estimator (KF + RLS mass with feedback + online class), the
+  VB-AKF (road_estimator 4 with ``--vb-iterations``, otherwise the defaults: RLS mass, response
+  classifier; its step against the default's is a ratio of the table), the
   RLS mass estimator alone (``MassEstimator.update``), the road generator (``SyntheticRoad.eval``)
   and the plant (``QuarterCar.step``). The estimators are fed the measurements of a plain-Python
   road + plant simulation: random input would make most samples outliers and time the wrong path.
 - FMU rounds through ``fmpy.fmi2.FMU2Slave``: setReal(all Real inputs) + doStep + getReal(all
   Real outputs) [+ getInteger(all Integer outputs)], for dist/ISORoad.fmu, dist/QuarterCar.fmu,
-  dist/SuspensionEstimator.fmu (default parameters, the same measurements as input) and a trivial
+  dist/SuspensionEstimator.fmu (default parameters, and road_estimator 4; the same measurements as
+  input) and a trivial
   pythonfmu FMU (one Real input u, one Real output y = u) built here into a temporary folder as
   the yardstick of the FMI plumbing.
 - the closed loop road -> plant -> estimator in ``harness.cosim.CoSimulation`` (the default
@@ -62,6 +65,7 @@ SPEED = 40 / 3.6  # m/s (the default scenario's 11.1111 m/s)
 MASS = 410.0  # kg
 ROAD_CLASS = 3  # ISO C
 SEED = 1
+VB_ITERATIONS = [6]  # vb_iterations of the VB-AKF rows (--vb-iterations)
 
 TRIVIAL_FMU = '''\
 """Trivial FMU for benchmarks/run.py: y = u (the yardstick of the FMI plumbing)."""
@@ -140,6 +144,7 @@ def estimator_configs() -> dict:
         "KF": EstimatorConfig(road_estimator=0, mass_estimator=0, road_class=ROAD_CLASS),
         "MME&KF": EstimatorConfig(road_estimator=1, mass_estimator=0, road_class=ROAD_CLASS),
         "default estimator": EstimatorConfig(),
+        "VB-AKF": EstimatorConfig(road_estimator=4, vb_iterations=VB_ITERATIONS[0]),
     }
 
 
@@ -199,16 +204,18 @@ class Slave:
     """One FMU2Slave instance with the value references of all its Real inputs and outputs.
     The pythonfmu binary is never unloaded (unloading it corrupts the heap, see harness.cosim)."""
 
-    def __init__(self, fmu: Path, tmp: Path, parameters: dict | None = None):
+    def __init__(self, fmu: Path, tmp: Path, parameters: dict | None = None, tag: str = ""):
+        """``tag``: a suffix of the folder it is extracted to and of its instance name, for a second
+        instance of the same FMU (extracting into the loaded one's folder overwrites its binary)."""
         from fmpy import extract, read_model_description
         from fmpy.fmi2 import FMU2Slave
 
         md = read_model_description(str(fmu), validate=False)
         self.name = md.coSimulation.modelIdentifier
         self.vars = {v.name: v for v in md.modelVariables}
-        unzip = extract(str(fmu), unzipdir=str(tmp / fmu.stem))
+        unzip = extract(str(fmu), unzipdir=str(tmp / f"{fmu.stem}{tag}"))
         self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzip, modelIdentifier=self.name,
-                             instanceName=f"bench_{self.name}")
+                             instanceName=f"bench_{self.name}{tag}")
         self.parameters = dict(parameters or {})
         self.real_outputs = [v.valueReference for v in md.modelVariables
                              if v.causality == "output" and v.type == "Real"]
@@ -292,6 +299,9 @@ def raw_round_loop(s: Slave, in_vrs: list[int], rows: list) -> None:
         t += H
 
 
+VB_FMU = "SuspensionEstimator.fmu, road_estimator 4 (VB-AKF)"
+
+
 def bench_fmus(data: dict, steps: int, repeat: int, tmp: Path, dist: Path) -> tuple[dict, dict]:
     out, info = {}, {}
     t0 = time.perf_counter()
@@ -310,6 +320,10 @@ def bench_fmus(data: dict, steps: int, repeat: int, tmp: Path, dist: Path) -> tu
     s = Slave(dist / "SuspensionEstimator.fmu", tmp)
     cases.append(("SuspensionEstimator.fmu", s, s.vr("acc_sprung", "acc_unsprung", "susp_deflection",
                                                      "vehicle_speed"),
+                  [[a, u, d, SPEED] for a, u, d in meas], {"vehicle_speed": SPEED}))
+    s = Slave(dist / "SuspensionEstimator.fmu", tmp, {"road_estimator": 4, "vb_iterations": VB_ITERATIONS[0]},
+              tag="_vb")
+    cases.append((VB_FMU, s, s.vr("acc_sprung", "acc_unsprung", "susp_deflection", "vehicle_speed"),
                   [[a, u, d, SPEED] for a, u, d in meas], {"vehicle_speed": SPEED}))
     raw = hasattr(cases[0][1].fmu, "_functions")
     for name, s, in_vrs, rows, init in cases:
@@ -458,6 +472,8 @@ def table(res: dict) -> str:
 
     for k, label in (("KF", "core: KF (road_class 3, no mass)"), ("MME&KF", "core: MME&KF (road_class 3, no mass)"),
                      ("default estimator", "core: default estimator (KF + RLS mass + online class)"),
+                     ("VB-AKF", f"core: VB-AKF, road_estimator 4, vb_iterations {VB_ITERATIONS[0]} "
+                                "(+ RLS mass + response class)"),
                      ("RLS mass", "core: RLS mass alone (MassEstimator.update)"),
                      ("road generator", "core: road generator (SyntheticRoad.eval)"),
                      ("plant", "core: plant (QuarterCar.step)")):
@@ -491,6 +507,13 @@ def analyse(res: dict) -> None:
                                        "value": est_fmu / triv, "target": "≤ 2", "met": est_fmu / triv <= 2},
         "closed_loop_real_time_factor": {"what": "closed loop real-time factor (1 ms step ÷ wall time per step)",
                                          "value": rtf, "target": "≥ 20", "met": rtf >= 20},
+        "vb_core_over_default_core": {"what": f"VB-AKF core step (vb_iterations {VB_ITERATIONS[0]}) ÷ default "
+                                              "estimator core step", "value": cores["VB-AKF"]["us_per_step"]
+                                      / cores["default estimator"]["us_per_step"], "target": "≤ 3",
+                                      "met": cores["VB-AKF"]["us_per_step"] <= 3 * cores["default estimator"]["us_per_step"]},
+        "vb_fmu_over_default_fmu": {"what": f"VB-AKF FMU round (vb_iterations {VB_ITERATIONS[0]}) ÷ default "
+                                            "SuspensionEstimator.fmu round", "value": fmus[VB_FMU]["us_per_step"] / est_fmu,
+                                    "target": "≤ 3", "met": fmus[VB_FMU]["us_per_step"] <= 3 * est_fmu},
         "default_core_over_trivial": {"what": "default estimator core step ÷ trivial FMU round",
                                       "value": cores["default estimator"]["us_per_step"] / triv,
                                       "target": "(info)", "met": None},
@@ -522,7 +545,12 @@ def main(argv=None) -> int:
     ap.add_argument("--json", type=Path, default=ROOT / "benchmarks" / "results.json", help="where to write JSON")
     ap.add_argument("--dist", type=Path, default=ROOT / "dist", help="folder with the built FMUs")
     ap.add_argument("--profile", action="store_true", help="also print cProfile of the estimator and the loop")
+    ap.add_argument("--vb-iterations", type=int, default=6,
+                    help="vb_iterations of the VB-AKF rows (road_estimator 4; default 6, the paper's)")
     args = ap.parse_args(argv)
+    if not 1 <= args.vb_iterations <= 50:
+        ap.error("need 1 <= --vb-iterations <= 50")
+    VB_ITERATIONS[0] = args.vb_iterations
     if args.repeat < 1 or args.steps < 10 or args.loop_time <= 0:
         ap.error("need --repeat >= 1, --steps >= 10, --loop-time > 0")
     loop_repeat = args.loop_repeat or min(args.repeat, 3)
@@ -536,7 +564,8 @@ def main(argv=None) -> int:
     res = {"machine": versions(), "load_average_start": os.getloadavg(),
            "settings": {"step_s": H, "speed_m_s": SPEED, "sprung_mass_kg": MASS, "road_class": ROAD_CLASS,
                         "seed": SEED, "repeat": args.repeat, "steps": args.steps, "warmup_passes": 1,
-                        "loop_time_s": args.loop_time, "loop_repeat": loop_repeat, "gc_during_timing": "off"},
+                        "loop_time_s": args.loop_time, "loop_repeat": loop_repeat, "gc_during_timing": "off",
+                        "vb_iterations": args.vb_iterations},
            "stale_fmus": stale_fmus(args.dist)}
     m = res["machine"]
     print(f"# benchmarks/run.py — {time.strftime('%Y-%m-%d %H:%M:%S')}")

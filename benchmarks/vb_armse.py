@@ -4,13 +4,13 @@ whose noise grows, and the step cost of the VB core.
     .venv/bin/python benchmarks/vb_armse.py [--runs N] [--seed S] [--n-iter N] [--chunk N]
                                             [--growth-seeds N] [--timing-steps N] [--json PATH]
 
-- ARMSE (``harness.vb_study.armse_table``): the authors' scenario (E / C / A stretches, oracle
+- ARMSE (``harness.studies.vb.armse_table``): the authors' scenario (E / C / A stretches, oracle
   class switch), rows KFTCM, KFNCM, RSAKF, VBAKF-R, VB forward, VB + RTS ("proposed"),
   KFNCM + RTS, KFTCM + RTS, and KFNCM, VB forward, VB + RTS with the road classifier in the
   loop instead of the oracle, over ``--runs`` Monte-Carlo runs, with the change against KFNCM
   in % and the paper's claimed reductions of "proposed" against KFNCM (its Tables 3 and 4);
   then the fraction of each stretch's steps on which the in-loop class is right.
-- Noise growth (``harness.vb_study.noise_growth``): our model, the body accelerometer's std 4x
+- Noise growth (``harness.studies.vb.noise_growth``): our model, the body accelerometer's std 4x
   from 4 s, seeds 1..``--growth-seeds``; KF, VB (tau = 0.8, the paper's) and VB (tau = inf, R
   only), RMSE over 5..12 s and the VB's estimated std of that sensor.
 - Timing: µs per ``step`` of VBAKF with N = 6 and N = 1 and of LinearKF (predict + update) on
@@ -44,33 +44,11 @@ import numpy as np  # noqa: E402
 from suspension_estimation.estimators.kalman import LinearKF  # noqa: E402
 from suspension_estimation.estimators.model import DiscreteModel  # noqa: E402
 from suspension_estimation.estimators.vb_akf import TAU, VBAKF  # noqa: E402
-from suspension_estimation.harness.vb_study import (GROWTH_STATES, ROWS, STRETCHES, armse_table, noise_growth,  # noqa: E402
-                              paper_model, paper_scenario, simulate)
+from suspension_estimation.harness.studies.vb import (GROWTH_STATES, ROWS, STRETCHES, armse_table, noise_growth,  # noqa: E402
+                                                     paper_model, paper_scenario, simulate)
+from suspension_estimation.harness.studies.vb import armse_markdown as _table  # noqa: E402
 from suspension_estimation.plant import iso8608  # noqa: E402
 from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE  # noqa: E402
-
-# paper 004, reductions of "the proposed filter" against KFNCM in % (position, velocity):
-# Table 3 stretch 1 (the same nominal with or without classification), Table 4 stretches 2, 3
-PAPER_CLAIM = {"E": (27.03, 15.85), "C": (28.29, 44.82), "A": (28.25, 28.30)}
-
-
-def _table(res: dict) -> str:
-    rows, se = res["rows"], res["se_change_pct"]
-    base = rows["KFNCM"]
-    head = " | ".join(f"pos {s} | vel {s}" for s in STRETCHES)
-    lines = [f"| row | {head} |", "|---" * (1 + 2 * len(STRETCHES)) + "|"]
-    for r in ROWS:
-        cells = []
-        for j in range(len(STRETCHES)):
-            for key, unit in (("pos", 1e3), ("vel", 1e3)):
-                v, b = rows[r][key][j], base[key][j]
-                pm = f" ± {se[r][key][j]:.1f}" if se and r != "KFNCM" else ""
-                cells.append(f"{v * unit:.3f} ({100 * (v - b) / b:+.1f}{pm} %)")
-        lines.append(f"| {r} | " + " | ".join(cells) + " |")
-    claim = " | ".join(f"{-p:+.1f} % | {-v:+.1f} %" for p, v in (PAPER_CLAIM[s] for s in STRETCHES))
-    lines.append(f"| paper: proposed vs KFNCM | {claim} |")
-    return "\n".join(lines)
-
 
 def _growth(seeds: int) -> tuple[str, list]:
     out = []

@@ -42,6 +42,8 @@ class RoadFilter:
             ``mass_estimator`` 1 then estimates it and passes it on through ``set_mass``).
         h: s, the step its model is built for (None before the first step).
         model_builds: how many times it (re-)built its model: a test counts them.
+        road_class: the ISO class (1..8) it identified itself and reports as ``road_class_est``,
+            or None (the composer's class of the estimated road is reported).
     """
 
     x: list[float]
@@ -50,6 +52,7 @@ class RoadFilter:
     mass: float | None = None
     h: float | None = None
     model_builds: int = 0
+    road_class: int | None = None  # ISO class 1..8 the estimator itself identified (road_class_est), or None
 
     def __init__(self, cfg: "EstimatorConfig"):
         self.cfg = cfg
@@ -88,6 +91,7 @@ ROAD_ESTIMATORS: dict[int, Code] = {
     0: Code("Kalman filter"),
     1: Code("MME&KF"),
     2: Code("KF with suspension-force error state"),
+    4: Code("VB-AKF", "vb_akf:VBRoadFilter"),
 }
 
 MASS_ESTIMATORS: dict[int, Code] = {

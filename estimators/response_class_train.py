@@ -55,13 +55,15 @@ WINDOW = 2.0  # s of a block (2 s: 99 % at the class values, 89 % with the band 
 
 @dataclass
 class Runs:
-    """Measurements Y (runs, K, 3) after settling, and per run: class, Gd(n0), speed, vehicle."""
+    """Measurements Y (runs, K, 3) after settling, and per run: class, Gd(n0), speed, vehicle; zr
+    (runs, K) the road heights (m) under the tyre at the same samples."""
 
     Y: np.ndarray
     classes: np.ndarray
     gd: np.ndarray
     speed: np.ndarray
     vehicles: list[Vehicle]
+    zr: np.ndarray | None = None
 
 
 def draw_vehicle(rng: np.random.Generator) -> Vehicle:
@@ -111,7 +113,7 @@ def simulate(n_runs: int, duration: float, seed: int, road_seeds: tuple[int, ...
         x = np.einsum("rij,rj->ri", Ad, x) + Bd * zr[:, k, None]
         Y[:, k] = np.einsum("rij,rj->ri", C, x) + D * zr[:, k, None]
     Y += rng.standard_normal(Y.shape) * np.array([noise.acc_sprung, noise.acc_unsprung, noise.deflection])
-    return Runs(Y[:, K0:], classes, gd, speed, vehicles)
+    return Runs(Y[:, K0:], classes, gd, speed, vehicles, zr[:, K0:])
 
 
 def features_of(runs: Runs, window: float = WINDOW, h: float = H) -> tuple[np.ndarray, np.ndarray]:

@@ -70,6 +70,7 @@ from .road_class import RoadClassifier
 from .start_offset import StartOffset
 from .steady_state import raw_error_variance
 from .tuning import TUNING, TUNING_FIELDS, Tuning
+from .vb_akf import vb_problems
 
 OUTPUTS = ("road_height_est", "road_velocity_est", "road_height_std", "z_s_est", "v_s_est",
            "z_u_est", "v_u_est", "susp_deflection_est", "tire_deflection_est", "sprung_mass_est",
@@ -143,6 +144,11 @@ class EstimatorConfig:
     # the sensor): 1 appends the previous v_s, v_u to the state (8 states), see model.py
     acc_sampling: int = 0
     iri_segment: float = 100.0  # m, segments of the IRI of the road estimate (plant/iri.py)
+    # road_estimator 4 (VB-AKF, vb_akf.VBRoadFilter): fixed-point iterations per step, forgetting
+    # factor of the R posterior, weight of the nominal prediction in the PECM prior (0 = R only)
+    vb_iterations: int = 6
+    vb_forgetting: float = 1.0 - math.exp(-4.0)
+    vb_tau: float = 0.0
     # everything else is a fixed choice, with its reason, in tuning.py
     tuning: Tuning = TUNING
 
@@ -170,6 +176,7 @@ class EstimatorConfig:
         for name, (lo, hi) in NOISE_STD_RANGES.items():
             msgs.append(check_range(name, float(getattr(self, name)), lo, hi))
         msgs += self.tuning.problems()
+        msgs += vb_problems(self)
         return [m for m in msgs if m]
 
 
@@ -820,7 +827,7 @@ class SuspensionEstimator:
         out["susp_deflection_est"] = x[IZS] - x[IZU]
         out["tire_deflection_est"] = x[IZU] - x[IZR]
         out["sprung_mass_est"] = mass
-        out["road_class_est"] = int(self.classifier.road_class)
+        out["road_class_est"] = int(self.classifier.road_class if f.road_class is None else f.road_class)
         out["nis"] = float(f.nis)
         out["status"] = status
         out["iri_est"] = self.iri.update(self.distance, x[IZR])

@@ -87,3 +87,69 @@ def rts_smooth(record: FilterRecord) -> tuple[np.ndarray, np.ndarray]:
         xs[..., k, :] = x[..., k, :] + (Gk @ (xs[..., k + 1, :] - x_pred[..., k, :])[..., None])[..., 0]
         Ps[..., k, :, :] = P[..., k, :, :] + Gk @ (Ps[..., k + 1, :, :] - P_prior[..., k, :, :]) @ np.swapaxes(Gk, -1, -2)
     return xs, Ps
+
+
+# --------------------------------------------------------------------------------------------------
+# a recorded FMU run
+# --------------------------------------------------------------------------------------------------
+# SuspensionEstimator outputs that are the 6 states of estimators.model, in its order
+FMU_STATES = ("z_s_est", "v_s_est", "z_u_est", "v_u_est", "road_height_est", "road_velocity_est")
+
+
+def fmu_model(parameters: dict, speed: float, h: float, road_class: int | None = None,
+              road_hold: bool | None = None):
+    """(F, Q, P) for smoothing a SuspensionEstimator run: the exact 6-state model of
+    ``estimators.model`` built from the FMU's ``parameters`` (its contract names; the rest at
+    their defaults) at ``speed`` m/s and step ``h`` s, and P the stationary posterior covariance of
+    the KF of that model with the configured sensor noise (``kalman.stationary_covariance``).
+
+    The defaults are the estimator's own model: ``road_class`` (the road intensity) is class
+    max(road_class or default_class, q_class_min) for the KF family (road_estimator 0-2; code 2's
+    force-error state is left out: its 6 physical states are smoothed on the exact model) and
+    road_class or default_class for the VB-AKF (road_estimator 4: pass the class it identified,
+    ``road_class_est``); ``road_hold`` (the road held over the step) as each does it: the KF
+    family with acc_sampling 1 only, the VB-AKF unless road_hold = 0. acc_sampling 1 is not
+    supported (its model has 8 states)."""
+    from suspension_estimation.estimators.kalman import stationary_covariance
+    from suspension_estimation.estimators.model import DiscreteModel, measurement_covariance
+    from suspension_estimation.estimators.suspension import EstimatorConfig
+    from suspension_estimation.plant import iso8608
+
+    cfg = EstimatorConfig(**parameters)
+    if int(cfg.acc_sampling) != 0:
+        raise ValueError("fmu_model: acc_sampling 1 (8 states) is not supported")
+    vb = int(cfg.road_estimator) == 4
+    if road_class is None:
+        road_class = int(cfg.road_class) or int(cfg.tuning.default_class)
+        road_class = road_class if vb else max(road_class, int(cfg.tuning.q_class_min))
+    if road_hold is None:
+        road_hold = cfg.tuning.road_hold != 0 if vb else cfg.tuning.road_hold == 1
+    hold = bool(road_hold)
+    m = DiscreteModel.build(cfg.vehicle(), max(speed, 0.1), iso8608.class_psd_n0(road_class), h, cfg.tuning.road_model,
+                            cfg.tuning.model_noise, True, 0, hold)
+    R = measurement_covariance(cfg.acc_sprung_noise_std, cfg.acc_unsprung_noise_std, cfg.defl_noise_std)
+    sol = stationary_covariance(m.Phi, m.Q, m.H, R)
+    if sol is None:
+        raise ValueError("fmu_model: the model's Kalman filter has no stationary covariance")
+    return m.Phi, m.Q, sol[1]
+
+
+def smooth_fmu_outputs(outputs: dict, parameters: dict, speed: float, h: float,
+                       road_class: int | None = None, road_hold: bool | None = None) -> dict:
+    """RTS-smooth a recorded SuspensionEstimator run from its outputs: ``outputs`` maps each name of
+    ``FMU_STATES`` to its samples (K,), one per step of h s (the rows after each doStep). The
+    outputs are taken as x_k|k; every step gets the covariance P and the model F, Q of
+    ``fmu_model`` (the filter's own covariance is not published). Whatever the filter (KF, the
+    robust default, the VB-AKF ...), its run is smoothed by the same backward pass with the same
+    model and covariance: smoothing compared on equal terms. For a filter at its stationary gain on
+    that model (the KF, road_estimator 0) this is its exact RTS smoother (tests/test_smoothing.py).
+    Returns the smoothed samples under the same names, plus ``susp_deflection_est`` and
+    ``tire_deflection_est``."""
+    F, Q, P = fmu_model(parameters, speed, h, road_class, road_hold)
+    x = np.stack([np.asarray(outputs[k], float) for k in FMU_STATES], axis=-1)
+    K = x.shape[-2]
+    xs, _ = rts_smooth(FilterRecord(x, np.broadcast_to(P, (K,) + P.shape), F, Q))
+    out = {k: xs[..., i] for i, k in enumerate(FMU_STATES)}
+    out["susp_deflection_est"] = out["z_s_est"] - out["z_u_est"]
+    out["tire_deflection_est"] = out["z_u_est"] - out["road_height_est"]
+    return out

@@ -11,7 +11,7 @@ from scipy.stats import invwishart
 from suspension_estimation.estimators.kalman import LinearKF
 from suspension_estimation.estimators.model import DiscreteModel
 from suspension_estimation.estimators.vb_akf import VBAKF, vb_update
-from suspension_estimation.harness.vb_study import noise_growth
+from suspension_estimation.harness.studies.vb import noise_growth
 from suspension_estimation.plant import iso8608
 from suspension_estimation.plant.quarter_car import QuarterCar, SensorNoise
 from suspension_estimation.plant.road import SyntheticRoad

@@ -1,11 +1,11 @@
-"""harness.vb_study: paper 004's model is our plant's in relative coordinates; its scenario's
+"""harness.studies.vb: paper 004's model is our plant's in relative coordinates; its scenario's
 stretches and noise levels; the batched filters against the single-run core."""
 from __future__ import annotations
 
 import numpy as np
 
 from suspension_estimation.estimators.vb_akf import VBAKF
-from suspension_estimation.harness.vb_study import (CLASS_Q, CLASS_R, PAPER_VEHICLE, kalman_runs, paper_model,
+from suspension_estimation.harness.studies.vb import (CLASS_Q, CLASS_R, PAPER_VEHICLE, kalman_runs, paper_model,
                               paper_scenario, simulate, vb_runs)
 from suspension_estimation.plant.quarter_car import discretise, state_matrices
 
@@ -64,7 +64,7 @@ def test_rsakf_against_filterpy_with_a_residual_window():
 
     from filterpy.kalman import KalmanFilter
 
-    from suspension_estimation.harness.vb_study import rsakf_runs
+    from suspension_estimation.harness.studies.vb import rsakf_runs
 
     F, B, H = paper_model()
     scn = paper_scenario()
@@ -90,7 +90,7 @@ def test_rsakf_against_filterpy_with_a_residual_window():
 def test_per_run_schedule_equals_the_core_with_restarts():
     """vb_runs with a nominal per run and step: the single-run VBAKF with set_model and
     reset_noise where the run's class changes."""
-    from suspension_estimation.harness.vb_study import _nominal_q_into_step, nominal_of
+    from suspension_estimation.harness.studies.vb import _nominal_q_into_step, nominal_of
 
     F, B, H = paper_model()
     scn = paper_scenario()
@@ -114,7 +114,7 @@ def test_in_loop_classifier_on_held_out_runs():
     """The in-loop schedule equals the streaming classifier; off the first block after a switch
     it is right on most blocks of held-out runs (benchmarks/road_class_accuracy.py: 99 %)."""
     from suspension_estimation.estimators.response_class import ResponseClassifier
-    from suspension_estimation.harness.vb_study import CLASS_BLOCK, TS, classified_schedule, paper_classifier
+    from suspension_estimation.harness.studies.vb import CLASS_BLOCK, TS, classified_schedule, paper_classifier
     from suspension_estimation.plant import iso8608
 
     model = paper_classifier(runs=20)

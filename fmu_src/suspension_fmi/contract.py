@@ -72,6 +72,9 @@ ROAD_ESTIMATORS: dict[int, tuple[str, str]] = {
     2: ("KF with suspension-force error state",
         "Kalman filter with a suspension-force error state, anchored below 1 Hz by the exact-model KF at the "
         "identified mass and damping (robust to the spring and damper; default)"),
+    4: ("VB-AKF",
+        "variational-Bayes adaptive Kalman filter adapting the measurement noise online (paper 004), its nominal "
+        "road intensity scheduled by the ISO class identified from the measured response"),
 }
 MASS_ESTIMATORS: dict[int, tuple[str, str]] = {
     0: ("off", "off: the mass stays m_s_nominal"),
@@ -221,6 +224,15 @@ SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
         "0 = accelerations sampled at the end of the step; 1 = averaged over the step (anti-alias filtered "
         "sensor); must match the sensor", {0: "end of step", 1: "average over the step"}),
     _IRI_SEGMENT,
+    Var("vb_iterations", "parameter", "Integer", None, 6,
+        "road_estimator 4: fixed-point iterations of the VB update per step (paper 004: 6)", (1, 50)),
+    _real_param("vb_forgetting", "1", 1.0 - math.exp(-4.0),
+                "road_estimator 4: forgetting factor rho of the measurement-noise posterior per step, memory "
+                "1/(1 - rho) steps (paper 004: 1 - exp(-4))", (0.9, 1.0, False, True)),
+    _real_param("vb_tau", "1", 0.0,
+                "road_estimator 4: weight of the nominal prediction in the prior of the predicted covariance "
+                "(paper 004: 0.8); 0 = the predicted covariance is not adapted, only the measurement noise "
+                "(default: follows a sensor whose noise grows)", (0.0, 1e6)),
     Var("acc_sprung", "input", "Real", "m/s2", 0.0, "measured sprung-mass acceleration"),
     Var("acc_unsprung", "input", "Real", "m/s2", 0.0, "measured unsprung-mass acceleration"),
     Var("susp_deflection", "input", "Real", "m", 0.0, "measured suspension deflection z_s - z_u"),

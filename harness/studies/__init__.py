@@ -18,6 +18,7 @@ STUDIES = {  # --study NAME: "module:object" under harness.studies
     "mass": "paper001:MASS",  # vehicle-mass paper, the 260 -> 450 -> 350 kg case
     "class": "road_class:CLASS",  # online ISO 8608 class, A..E at 10-30 m/s
     "robust": "robust:ROBUST",  # the plant off the estimators' model (vehicle offsets)
+    "vb": "vb:VB_STUDY",  # paper 004: VB-AKF ARMSE table, the smoother's share, a loosening sensor mount
 }
 
 

@@ -106,6 +106,8 @@ class RunSpec:
             return f"mass ISO {c} seed {self.seed}"
         if self.study == "class":
             return f"class ISO {c} {self.speed:g} m/s seed {self.seed}"
+        if self.study == "vb_loose":
+            return f"vb loosening mount ISO {c} seed {self.seed}"
         return (f"{self.study} ISO {c} {self.mass:g} kg seed {self.seed}"
                 + (f" acc_sampling {self.acc_sampling}" if self.study == "table2_10ms" else ""))
 
