@@ -7,7 +7,9 @@ from suspension_estimation.suspension_fmi.slave import ContractSlave
 # contract parameters that configure the core under the same name
 _CONFIG = ("m_s_nominal", "m_u", "k_s", "k_t", "c_s", "road_estimator", "mass_estimator", "mass_feedback",
            "forgetting_factor", "road_class", "acc_sprung_noise_std", "acc_unsprung_noise_std", "defl_noise_std",
-           "acc_sampling", "iri_segment")
+           "acc_sampling", "iri_segment", "spring_model", "damper_model",
+           "air_area", "air_volume", "air_kappa", "air_pressure_max", "damper_c_rebound", "damper_c_compression",
+           "damper_knee_rebound", "damper_knee_compression", "damper_c_rebound_high", "damper_c_compression_high")
 
 
 class SuspensionEstimator(ContractSlave):
