@@ -16,7 +16,8 @@ The paper's index: "an accuracy index is introduced ... The closer the index get
 1, the more precise the estimation result is"; its equation is lost from the text, so the index
 here is 1 - ||x - x_hat|| / ||x|| over the samples after the warm-up (1 = exact, 0 = no better
 than zero), for the paper's states that are outputs of the estimator: suspension deflection and
-its velocity, body and wheel velocity (sprung-mass acceleration is not an output), plus the road.
+its velocity, body and wheel velocity (sprung-mass acceleration is not an output). The road
+(not indexed by the paper) is scored as elsewhere: HP error, in-band gain, coverage.
 Its Tables 4-6 (the numbers) and its FL-KF's transformation are not in the text either: what can
 be compared is the direction of each of its statements (``targets``).
 """
@@ -51,15 +52,14 @@ STATES = {
     "deflection velocity": (lambda p: p["v_s"] - p["v_u"], lambda e: e["v_s_est"] - e["v_u_est"]),
     "V_ms": (lambda p: p["v_s"], lambda e: e["v_s_est"]),
     "V_mu": (lambda p: p["v_u"], lambda e: e["v_u_est"]),
-    "road": (lambda p: p["road"], lambda e: e["road_height_est"]),
 }
 EST_OUT = ("z_s_est", "v_s_est", "z_u_est", "v_u_est", "road_height_est", "road_height_std", "sprung_mass_est",
            "status")
 PAPER003_TEXT = {
     "table4": "FL-KF better than EKF on all five states, most on V_ms and V_mu (numbers not in the text)",
     "table5": "the FL-KF - EKF difference grows from ISO A to C (numbers not in the text)",
-    "table6": "with the mass +20 % at start the dual observer is much better on the sprung mass (sic) and V_mu "
-              "than FL-KF-NoME, about the same on deflection, deflection velocity, body acceleration",
+    "table6": "with the mass +20 % at start the dual observer is 'much more accurate for sprung mass and unsprung "
+              "mass velocity' than FL-KF-NoME, about the same on deflection, deflection velocity, body acceleration",
 }
 
 
@@ -156,15 +156,21 @@ class Paper003(Study):
         out = []
         if not suite.ok(KIND, road_class=B):
             return [("paper 003 (ISO B)", verdict(None), "no completed run")]
-        # Table 6: the mass estimator helps most on the velocities, little on what is measured
-        gain_v = {s: idx("dual", s) - idx("EKF_NoME", s) for s in ("V_ms", "V_mu")}
+        # Table 6: the mass estimator helps on the mass and V_mu, little on what is measured
+        mass_dual = abs(m(suite, B, "dual", "mass_end_pct"))
+        out.append(("paper 003 Table 6: dual observer better than no mass estimation on the mass and V_mu "
+                    "(ISO B, +20 %)", verdict(mass_dual < HEAVY * 100 - 100 and idx("dual", "V_mu") > idx("EKF_NoME", "V_mu")),
+                    f"mass {m(suite, B, 'dual', 'mass_end_pct'):+.2f} vs +{HEAVY * 100 - 100:g} %, V_mu "
+                    f"{idx('dual', 'V_mu'):.3f} vs {idx('EKF_NoME', 'V_mu'):.3f}"))
+        gain_v = idx("dual", "V_mu") - idx("EKF_NoME", "V_mu")
         gain_d = {s: idx("dual", s) - idx("EKF_NoME", s) for s in ("deflection", "deflection velocity")}
-        out.append(("paper 003 Table 6: dual observer beats no mass estimation on V_ms and V_mu (ISO B, +20 %)",
-                    verdict(all(g > 0 for g in gain_v.values())),
-                    ", ".join(f"{s} {idx('dual', s):.3f} vs {idx('EKF_NoME', s):.3f}" for s in gain_v)))
-        out.append(("paper 003 Table 6: ... and differs less on deflection and its velocity",
-                    verdict(max(abs(g) for g in gain_d.values()) < min(gain_v.values())),
-                    ", ".join(f"{s} {idx('dual', s):.3f} vs {idx('EKF_NoME', s):.3f}" for s in gain_d)))
+        out.append(("paper 003 Table 6: ... and differs less on deflection and its velocity than on V_mu",
+                    verdict(max(abs(g) for g in gain_d.values()) < gain_v),
+                    ", ".join(f"{s} {g:+.3f}" for s, g in gain_d.items()) + f" vs V_mu {gain_v:+.3f}"))
+        hp = {n: m(suite, B, n, "err_std_hp_pct") for n in ("EKF", "EKF_NoME", "dual")}
+        out.append(("paper 003: the mass estimator restores most of the road a +20 % mass costs (HP, ISO B)",
+                    verdict(hp["dual"] - hp["EKF"] < 0.5 * (hp["EKF_NoME"] - hp["EKF"])),
+                    f"HP known {hp['EKF']:.2f}, +20 % {hp['EKF_NoME']:.2f}, dual {hp['dual']:.2f} %"))
         mass = self.values(suite, B, "dual", "mass_end_pct")
         out.append(("paper 003 Fig. 5: the dual observer's mass from +20 % to within 5 % (ISO B, every seed)",
                     verdict(bool(np.all(np.abs(mass) < 5.0))), f"{mean_std(mass, '+.2f')} %"))

@@ -59,7 +59,7 @@ ESTIMATORS = (
 ALL_CASES = (*CASES, NONLINEAR)
 SPEEDS = (40 / 3.6, 80 / 3.6)  # m/s
 METRICS = ("err_std_hp_pct", "err_std_raw_pct", "gain_hp", "coverage_2sigma", "mass_err_mean_pct")
-# issue 11 point 3
+# the targets of the default
 HP_RATIO = 1.5  # HP error within this factor of the default's own on the exact vehicle
 HP_MAX_C40 = 4.0  # %, ISO C at 40 km/h
 GAIN = (0.9, 1.1)
