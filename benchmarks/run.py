@@ -157,6 +157,7 @@ def bench_ukf_cores(meas: list, steps: int, repeat: int) -> dict:
     data (tests/test_airspring_observers.py holds them equal to 1e-9)."""
     from suspension_estimation.estimators.airspring_observers import UKF, FilterpyUKF, NonlinearModel
     from suspension_estimation.estimators.model import measurement_covariance
+    from suspension_estimation.plant import iso8608
     from suspension_estimation.plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_DAMPER
     from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE
 

@@ -159,7 +159,8 @@ class Paper003(Study):
         # Table 6: the mass estimator helps on the mass and V_mu, little on what is measured
         mass_dual = abs(m(suite, B, "dual", "mass_end_pct"))
         out.append(("paper 003 Table 6: dual observer better than no mass estimation on the mass and V_mu "
-                    "(ISO B, +20 %)", verdict(mass_dual < HEAVY * 100 - 100 and idx("dual", "V_mu") > idx("EKF_NoME", "V_mu")),
+                    "(ISO B, +20 %)",
+                    verdict(mass_dual < HEAVY * 100 - 100 and idx("dual", "V_mu") > idx("EKF_NoME", "V_mu")),
                     f"mass {m(suite, B, 'dual', 'mass_end_pct'):+.2f} vs +{HEAVY * 100 - 100:g} %, V_mu "
                     f"{idx('dual', 'V_mu'):.3f} vs {idx('EKF_NoME', 'V_mu'):.3f}"))
         gain_v = idx("dual", "V_mu") - idx("EKF_NoME", "V_mu")
@@ -184,7 +185,8 @@ class Paper003(Study):
                     verdict(d[1] < d[2] < d[3]), ", ".join(f"{CLASS_LETTERS[c - 1]} {v:+.4f}" for c, v in d.items())))
         out.append(("paper 003: the maps matter (EKF beats the KF told the linearisation on the road, ISO B)",
                     verdict(m(suite, B, "EKF", "err_std_hp_pct") < m(suite, B, "KF_lin", "err_std_hp_pct")),
-                    f"HP {m(suite, B, 'EKF', 'err_std_hp_pct'):.2f} vs {m(suite, B, 'KF_lin', 'err_std_hp_pct'):.2f} %"))
+                    f"HP {m(suite, B, 'EKF', 'err_std_hp_pct'):.2f} vs "
+                    f"{m(suite, B, 'KF_lin', 'err_std_hp_pct'):.2f} %"))
         return out
 
     def config(self, suite) -> dict:

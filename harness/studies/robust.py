@@ -187,7 +187,8 @@ class Robust(Study):
               "default and the KFs its linearisation at the static point, the observers its maps; 'KF exact' the "
               "plant's own vehicle and mass). MISS: the targets above, of that estimator against its own "
               "exact-vehicle HP.", "",
-              "| ISO | km/h | plant | estimator | HP | raw | gain | cov | mass % | MISS |", "|---|---|---|---|---|---|---|---|---|---|"]
+              "| ISO | km/h | plant | estimator | HP | raw | gain | cov | mass % | MISS |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
         for cls in suite.classes:
             for u in SPEEDS:
                 kmh = round(3.6 * u)
@@ -233,7 +234,8 @@ class Robust(Study):
                              + [(0.0, "exact")])
                 for inst, ls, name in (("default", "-", "default"), ("KF_nominal", ":", "KF (0)"),
                                        ("EKF", "--", "EKF (3)")):
-                    ax.plot([p for p, _ in pts], [self.cell(suite, k, cls, kmh, inst, "err_std_hp_pct") for _, k in pts],
+                    ax.plot([p for p, _ in pts],
+                            [self.cell(suite, k, cls, kmh, inst, "err_std_hp_pct") for _, k in pts],
                             ls, color=color, marker="o", label=f"{par} {name}")
             for inst, marker, name in (("default", "s", "default"), ("KF_nominal", "v", "KF (0)"),
                                        ("EKF", "^", "EKF (3)"), ("dual", "D", "dual (3, 3)")):
