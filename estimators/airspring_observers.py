@@ -345,7 +345,7 @@ class UKF:
     """Unscented Kalman filter on ``NonlinearModel``: the algorithm of filterpy's
     UnscentedKalmanFilter with Merwe's scaled sigma points (alpha, beta = 2, kappa = 3 - n), the
     model evaluated on all 2n + 1 sigma points at once (``propagate_many``). filterpy calls the
-    model once per point: 650 us per step against this one's (benchmarks/run.py);
+    model once per point and takes 1.6-5 times as long per step (benchmarks/run.py, "UKF core");
     tests/test_airspring_observers.py holds the two equal to 1e-9 on the same data.
 
     Weights (Merwe): lambda = alpha^2 (n + kappa) - n, Wm_0 = lambda / (n + lambda),
