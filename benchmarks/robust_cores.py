@@ -8,7 +8,9 @@ Plant: plant.QuarterCar with the vehicle of each case of harness/studies/robust.
 plant.NonlinearQuarterCar with the default air spring and damper ("nonlinear": the estimators
 are told only its linearisation at the static point). Estimators told the nominal vehicle:
 the default (road_estimator 2), the KF (road_estimator 0) and, as a diagnosis, the force-error
-filter alone (road_estimator 2 without the anchor's blend and velocity pull, mass not fed back).
+filter alone (road_estimator 2 without the anchor's blend and velocity pull, mass not fed back);
+paper 003's observers (road_estimator 3 EKF, 5 UKF, mass_estimator 3 dual observer), on the
+nonlinear case told the plant's maps (spring_model = damper_model = 1), else the nominal vehicle.
 Prints one markdown row per (class, speed, case, estimator): HP / raw road error std %, in-band
 gain, 2-sigma coverage, mean sprung-mass error % after the 10 s warm-up (means over seeds).
 """
@@ -38,7 +40,12 @@ ESTIMATORS = {
     "default": {},
     "KF (0)": {"road_estimator": 0},
     "force-error filter alone": {"blend_hz": 1e-9, "align_hz": 0.0, "mass_feedback": False},
+    "EKF (3)": {"road_estimator": 3, "mass_estimator": 0},
+    "UKF (5)": {"road_estimator": 5, "mass_estimator": 0},
+    "dual observer (3, 3)": {"road_estimator": 3, "mass_estimator": 3},
 }
+OBSERVERS = ("EKF (3)", "UKF (5)", "dual observer (3, 3)")
+MAPS = {"spring_model": 1, "damper_model": 1}  # the contract's default air spring and damper
 
 
 def drive(case: str, cls: int, speed: float, duration: float, seed: int):
@@ -91,7 +98,8 @@ def main(argv: list[str] | None = None) -> int:
                 for seed in range(1, a.seeds + 1):
                     t, meas, zr, told = drive(case, cls, kmh / 3.6, a.duration, seed)
                     for name, kw in ESTIMATORS.items():
-                        rows[name].append(score(t, meas, zr, told, kmh / 3.6, **kw))
+                        maps = MAPS if case == "nonlinear" and name in OBSERVERS else {}
+                        rows[name].append(score(t, meas, zr, told, kmh / 3.6, **kw, **maps))
                 for name, r in rows.items():
                     m = {k: np.mean([x[k] for x in r]) for k in r[0]}
                     print(f"| {letter.strip().upper()} | {kmh:g} | {case} | {name} | {m['err_std_hp_pct']:.2f} | "

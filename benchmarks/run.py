@@ -145,7 +145,38 @@ def estimator_configs() -> dict:
         "MME&KF": EstimatorConfig(road_estimator=1, mass_estimator=0, road_class=ROAD_CLASS),
         "default estimator": EstimatorConfig(),
         "VB-AKF": EstimatorConfig(road_estimator=4, vb_iterations=VB_ITERATIONS[0]),
+        # paper 003's codes told the default air spring and damper (on the linear plant's data: the
+        # cost of a step does not depend on which plant made the measurements)
+        "EKF (3)": EstimatorConfig(road_estimator=3, mass_estimator=0, road_class=ROAD_CLASS, **NONLINEAR_MAPS),
+        "UKF (5)": EstimatorConfig(road_estimator=5, mass_estimator=0, road_class=ROAD_CLASS, **NONLINEAR_MAPS),
+        "dual observer (3, 3)": EstimatorConfig(road_estimator=3, mass_estimator=3, road_class=ROAD_CLASS,
+                                                **NONLINEAR_MAPS),
     }
+
+
+NONLINEAR_MAPS = {"spring_model": 1, "damper_model": 1}
+
+
+def bench_ukf_cores(meas: list, steps: int, repeat: int) -> dict:
+    """The UKF of road_estimator 5 against filterpy's UnscentedKalmanFilter on the same model and
+    data (tests/test_airspring_observers.py holds them equal to 1e-9)."""
+    from suspension_estimation.estimators.airspring_observers import UKF, FilterpyUKF, NonlinearModel
+    from suspension_estimation.estimators.model import measurement_covariance
+    from suspension_estimation.plant import iso8608
+    from suspension_estimation.plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_DAMPER
+    from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE
+
+    model = NonlinearModel(DEFAULT_VEHICLE, DEFAULT_AIR_SPRING, DEFAULT_DAMPER, SPEED, iso8608.class_psd_n0(ROAD_CLASS))
+    R = measurement_covariance(0.02, 0.2, 1e-4)
+    z = [np.array(m) for m in meas]
+
+    def run(f):
+        st = f.step
+        for m in z:
+            st(m)
+
+    return {name: bench(lambda cls=cls: cls(model, H, R, DEFAULT_VEHICLE.m_s), run, steps, repeat)
+            for name, cls in (("UKF core (own)", UKF), ("UKF core (filterpy)", FilterpyUKF))}
 
 
 def run_estimator(est, meas) -> None:
@@ -175,6 +206,7 @@ def bench_cores(data: dict, steps: int, repeat: int) -> dict:
             update(a, d, H)
 
     out["RLS mass"] = bench(lambda: MassEstimator(v.m_s, v.k_s, v.c_s, 0.995), run_mass, steps, repeat)
+    out.update(bench_ukf_cores(meas, min(steps, 5000), repeat))  # filterpy's: ~0.5 ms a step
 
     road = data["road"]
 
@@ -475,6 +507,11 @@ def table(res: dict) -> str:
                      ("VB-AKF", f"core: VB-AKF, road_estimator 4, vb_iterations {VB_ITERATIONS[0]} "
                                 "(+ RLS mass + response class)"),
                      ("RLS mass", "core: RLS mass alone (MassEstimator.update)"),
+                     ("EKF (3)", "core: EKF, road_estimator 3 (nonlinear maps, no mass)"),
+                     ("UKF (5)", "core: UKF, road_estimator 5 (nonlinear maps, no mass)"),
+                     ("dual observer (3, 3)", "core: dual observer, road_estimator 3 + mass_estimator 3"),
+                     ("UKF core (own)", "core: UKF filter alone (airspring_observers.UKF)"),
+                     ("UKF core (filterpy)", "core: filterpy's UnscentedKalmanFilter, same model and data"),
                      ("road generator", "core: road generator (SyntheticRoad.eval)"),
                      ("plant", "core: plant (QuarterCar.step)")):
         row(label, cores[k])
@@ -517,7 +554,15 @@ def analyse(res: dict) -> None:
         "default_core_over_trivial": {"what": "default estimator core step ÷ trivial FMU round",
                                       "value": cores["default estimator"]["us_per_step"] / triv,
                                       "target": "(info)", "met": None},
+        "filterpy_ukf_over_own": {"what": "filterpy's UKF step ÷ the UKF of road_estimator 5 (same model, data)",
+                                  "value": cores["UKF core (filterpy)"]["us_per_step"]
+                                  / cores["UKF core (own)"]["us_per_step"], "target": "(info)", "met": None},
     }
+    for k in ("EKF (3)", "UKF (5)", "dual observer (3, 3)"):
+        res["ratios"][f"{k}_over_default"] = {
+            "what": f"core {k} step ÷ default estimator core step",
+            "value": cores[k]["us_per_step"] / cores["default estimator"]["us_per_step"], "target": "(info)",
+            "met": None}
     core_sum = (cores["road generator"]["us_per_step"] + cores["plant"]["us_per_step"]
                 + cores["default estimator"]["us_per_step"])
     rounds = sum(fmus[k]["us_per_step"] for k in ("ISORoad.fmu", "QuarterCar.fmu", "SuspensionEstimator.fmu"))

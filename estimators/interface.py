@@ -91,12 +91,15 @@ ROAD_ESTIMATORS: dict[int, Code] = {
     0: Code("Kalman filter"),
     1: Code("MME&KF"),
     2: Code("KF with suspension-force error state"),
+    3: Code("EKF on the nonlinear model", "airspring_observers:NonlinearRoadFilter"),
     4: Code("VB-AKF", "vb_akf:VBRoadFilter"),
+    5: Code("UKF on the nonlinear model", "airspring_observers:UKFRoadFilter"),
 }
 
 MASS_ESTIMATORS: dict[int, Code] = {
     0: Code("off"),
     1: Code("forgetting-factor RLS"),
+    3: Code("dual observer", "airspring_observers:DualObserverFilter", roads=(3, 5)),
 }
 
 

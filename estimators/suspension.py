@@ -58,6 +58,7 @@ from ..plant import iso8608
 from ..plant.iri import IRIMeter
 from ..plant.quarter_car import NOISE_STD_RANGES
 from ..plant.step_size import same_step
+from ..plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_DAMPER
 from ..plant.vehicle import Vehicle, VEHICLE_RANGES, check_range
 
 from .interface import RoadFilter, code_problems, composed_factory, state_list
@@ -143,6 +144,20 @@ class EstimatorConfig:
     # 0 = accelerations sampled at the end of the step, 1 = averaged over the step (must match
     # the sensor): 1 appends the previous v_s, v_u to the state (8 states), see model.py
     acc_sampling: int = 0
+    # the nonlinear suspension of road_estimator 3, 5 and mass_estimator 3 (airspring_observers.py):
+    # the plant's parameters (plant/suspension_forces.py: names, units, defaults); 0 = linear k_s, c_s
+    spring_model: int = 0  # 0 = linear spring k_s, 1 = self-levelling air spring (air_*)
+    damper_model: int = 0  # 0 = linear damper c_s, 1 = asymmetric piecewise-linear damper (damper_*)
+    air_area: float = DEFAULT_AIR_SPRING.air_area  # m^2
+    air_volume: float = DEFAULT_AIR_SPRING.air_volume  # m^3
+    air_kappa: float = DEFAULT_AIR_SPRING.air_kappa  # 1
+    air_pressure_max: float = DEFAULT_AIR_SPRING.air_pressure_max  # Pa, absolute
+    damper_c_rebound: float = DEFAULT_DAMPER.damper_c_rebound  # N.s/m
+    damper_c_compression: float = DEFAULT_DAMPER.damper_c_compression  # N.s/m
+    damper_knee_rebound: float = DEFAULT_DAMPER.damper_knee_rebound  # m/s
+    damper_knee_compression: float = DEFAULT_DAMPER.damper_knee_compression  # m/s
+    damper_c_rebound_high: float = DEFAULT_DAMPER.damper_c_rebound_high  # N.s/m
+    damper_c_compression_high: float = DEFAULT_DAMPER.damper_c_compression_high  # N.s/m
     iri_segment: float = 100.0  # m, segments of the IRI of the road estimate (plant/iri.py)
     # road_estimator 4 (VB-AKF, vb_akf.VBRoadFilter): fixed-point iterations per step, forgetting
     # factor of the R posterior, weight of the nominal prediction in the PECM prior (0 = R only)
@@ -177,6 +192,9 @@ class EstimatorConfig:
             msgs.append(check_range(name, float(getattr(self, name)), lo, hi))
         msgs += self.tuning.problems()
         msgs += vb_problems(self)
+        if not any(m and m.startswith(("road_estimator", "mass_estimator")) for m in msgs):
+            from .airspring_observers import config_problems  # the nonlinear model's parameters
+            msgs += config_problems(self)
         return [m for m in msgs if m]
 
 

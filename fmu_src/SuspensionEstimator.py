@@ -1,4 +1,5 @@
-"""SuspensionEstimator FMU: road profile (robust KF, KF or MME&KF), sprung mass (RLS) and ISO class online."""
+"""SuspensionEstimator FMU: road profile (robust KF, KF, MME&KF, EKF, UKF), sprung mass (RLS, dual
+observer) and ISO class online."""
 from __future__ import annotations
 
 from suspension_estimation.estimators.suspension import EstimatorConfig, SuspensionEstimator as Core
@@ -11,8 +12,9 @@ _CONFIG = tuple(v.name for v in SUSPENSION_ESTIMATOR if v.causality == "paramete
 
 
 class SuspensionEstimator(ContractSlave):
-    description = ("Road-profile (robust KF, KF, MME&KF), sprung-mass (forgetting-factor RLS) and ISO 8608 class "
-                   "estimation from body and wheel accelerations and suspension deflection")
+    description = ("Road-profile (robust KF, KF, MME&KF; EKF, UKF on the nonlinear model), sprung-mass "
+                   "(forgetting-factor RLS, dual observer) and ISO 8608 class estimation from body and wheel "
+                   "accelerations and suspension deflection")
     state_attributes = ("core",)
 
     def setup(self) -> None:

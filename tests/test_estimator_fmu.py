@@ -92,7 +92,7 @@ def test_non_finite_measurement_is_rejected_and_the_filter_predicts_through(dist
 @pytest.mark.parametrize("params, name", [
     ({"forgetting_factor": 0.9}, "forgetting_factor"), ({"forgetting_factor": 1.01}, "forgetting_factor"),
     ({"m_s_nominal": 0.0}, "m_s_nominal"), ({"k_t": -1.0}, "k_t"), ({"c_s": float("nan")}, "c_s"),
-    ({"road_estimator": 3}, "road_estimator"), ({"mass_estimator": -1}, "mass_estimator"),
+    ({"road_estimator": 9}, "road_estimator"), ({"mass_estimator": -1}, "mass_estimator"),
     ({"road_class": 9}, "road_class"), ({"acc_sprung_noise_std": 0.0}, "acc_sprung_noise_std"),
     ({"defl_noise_std": -1e-4}, "defl_noise_std"),
 ])

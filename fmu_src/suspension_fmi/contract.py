@@ -72,13 +72,22 @@ ROAD_ESTIMATORS: dict[int, tuple[str, str]] = {
     2: ("KF with suspension-force error state",
         "Kalman filter with a suspension-force error state, anchored below 1 Hz by the exact-model KF at the "
         "identified mass and damping (robust to the spring and damper; default)"),
+    3: ("EKF on the nonlinear model",
+        "extended Kalman filter on the nonlinear quarter car of spring_model, damper_model and their parameters "
+        "(paper 003's baseline)"),
     4: ("VB-AKF",
         "variational-Bayes adaptive Kalman filter adapting the measurement noise online (paper 004), its nominal "
         "road intensity scheduled by the ISO class identified from the measured response"),
+    5: ("UKF on the nonlinear model",
+        "unscented Kalman filter (Merwe sigma points) on the nonlinear quarter car of spring_model, damper_model "
+        "and their parameters"),
 }
 MASS_ESTIMATORS: dict[int, tuple[str, str]] = {
     0: ("off", "off: the mass stays m_s_nominal"),
     1: ("forgetting-factor RLS", "forgetting-factor RLS on the suspension force balance (paper 001)"),
+    3: ("dual observer",
+        "paper 003's dual observer: a Kalman filter on 1/sprung mass from the body acceleration, exchanging "
+        "estimates every step with the state filter of road_estimator 3 (EKF) or 5 (UKF), which it needs"),
 }
 
 
@@ -198,9 +207,15 @@ QUARTER_CAR: tuple[Var, ...] = (
         "(nonlinear plant; the linear plant has none)"),
 )
 
+# The suspension laws the nonlinear estimators (road_estimator 3, 5; mass_estimator 3) are told: the
+# plant's own variables (names, units, defaults, ranges), without the bump stops they do not model.
+_MODEL_PARAMS = tuple(v for v in QUARTER_CAR if v.name in ("spring_model", "damper_model")
+                      or (v.name.startswith(("air_", "damper_")) and v.causality == "parameter"))
+
 SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
     _real_param("m_s_nominal", "kg", V.m_s, "sprung mass the model assumes at start", VEHICLE_RANGES["m_s"]),
     *_vehicle_params("the model assumes"),
+    *_MODEL_PARAMS,
     Var("road_estimator", "parameter", "Integer", None, 2, _codes_text(ROAD_ESTIMATORS),
         {k: name for k, (name, _) in ROAD_ESTIMATORS.items()}),
     Var("mass_estimator", "parameter", "Integer", None, 1, _codes_text(MASS_ESTIMATORS),

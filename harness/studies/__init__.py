@@ -17,8 +17,9 @@ STUDIES = {  # --study NAME: "module:object" under harness.studies
     "10ms": "paper000:STUDY_10MS",  # Table 2 at a 10 ms step, point-sampled vs averaged accelerations
     "mass": "paper001:MASS",  # vehicle-mass paper, the 260 -> 450 -> 350 kg case
     "class": "road_class:CLASS",  # online ISO 8608 class, A..E at 10-30 m/s
-    "robust": "robust:ROBUST",  # the plant off the estimators' model (vehicle offsets)
+    "robust": "robust:ROBUST",  # the plant off the estimators' model (vehicle offsets, nonlinear plant)
     "vb": "vb:VB_STUDY",  # paper 004: VB-AKF ARMSE table, the smoother's share, a loosening sensor mount
+    "paper003": "paper003:PAPER003",  # paper 003: EKF, UKF, dual observer on the nonlinear plant
 }
 
 

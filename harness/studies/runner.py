@@ -98,6 +98,9 @@ class RunSpec:
     speed: float = SPEED  # m/s
     noise: tuple[float, float, float] = tuple(NOISE.values())  # m/s2, m/s2, m: plant's sensors, estimators' model
     nominal_mass: float = NOMINAL_MASS  # kg, what the estimators of a table-2 run assume (unless true_mass)
+    # the plant's suspension laws (QuarterCar spring_model, damper_model): (0, 0) the linear k_s and
+    # c_s of ``vehicle``; 1 = the air spring / the asymmetric damper with the contract's defaults
+    plant_models: tuple[int, int] = (0, 0)
 
     @property
     def name(self) -> str:
@@ -109,7 +112,9 @@ class RunSpec:
         if self.study == "vb_loose":
             return f"vb loosening mount ISO {c} seed {self.seed}"
         return (f"{self.study} ISO {c} {self.mass:g} kg seed {self.seed}"
-                + (f" acc_sampling {self.acc_sampling}" if self.study == "table2_10ms" else ""))
+                + (f" acc_sampling {self.acc_sampling}" if self.study == "table2_10ms" else "")
+                + (f" plant models {self.plant_models[0]},{self.plant_models[1]}"
+                   if tuple(self.plant_models) != (0, 0) else ""))
 
 
 def build_system(dist: Path, estimators: Sequence[str]) -> System:
@@ -139,6 +144,7 @@ def plant_params(spec: RunSpec) -> dict:
     p = {"ISORoad.road_class": spec.road_class, "ISORoad.seed": spec.seed,
          "QuarterCar.noise_seed": NOISE_SEED_OFFSET + spec.seed, "QuarterCar.acc_sampling": spec.acc_sampling}
     p.update({f"QuarterCar.{k}": v for k, v in {**vehicle_params(spec), **noise_params(spec)}.items()})
+    p["QuarterCar.spring_model"], p["QuarterCar.damper_model"] = map(int, spec.plant_models)
     return p
 
 
