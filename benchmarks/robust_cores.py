@@ -59,6 +59,7 @@ def drive(case: str, cls: int, speed: float, duration: float, seed: int):
         car = QuarterCar(DEFAULT_VEHICLE.with_(**dict(zip(("m_u", "k_s", "k_t", "c_s"), plant_vehicle(case)))),
                          SensorNoise(), noise_seed=1000 + seed)
         told = DEFAULT_VEHICLE.with_(**NOMINAL)
+    car.settle(road.height(0.0))  # at rest on the road at t = 0, as QuarterCar.fmu starts
     n = int(round(duration / H))
     meas, zr = np.empty((n, 3)), np.empty(n)
     for k in range(n):

@@ -1,5 +1,11 @@
 """The road height the car started on, estimated from the road estimate itself.
 
+Used only with ``EstimatorConfig.start_offset`` True, where ``road_height_est`` is the absolute
+height of a zero-mean stationary ISO road. The default estimate is relative to the start level
+(harness.metrics.reference_road), where z_0 is zero by definition; on a road with grades or
+vertical curves the zero-mean assumption below does not hold and this estimate of z_0 is wrong
+(docs/real-roads.md).
+
 The accelerations and the deflection observe only relative motion, so the KF's road estimate
 x(t) is relative to its common-mode reference (model.py). After a start on a road at the unknown
 height z_0 it carries -z_0 g(t), g the reference's step response (``reference_step_response``;

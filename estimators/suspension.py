@@ -69,12 +69,12 @@ from .model import (IVR, IVS, IVU, IZR, IZS, IZU, N_STATES, N_STATES_AVG, Discre
                     reference_step_response)
 from .road_class import RoadClassifier
 from .start_offset import StartOffset
-from .steady_state import raw_error_variance
+from .steady_state import raw_error_variance, reference_lag
 from .tuning import TUNING, TUNING_FIELDS, Tuning
 from .vb_akf import vb_problems
 
 OUTPUTS = ("road_height_est", "road_velocity_est", "road_height_std", "z_s_est", "v_s_est",
-           "z_u_est", "v_u_est", "susp_deflection_est", "tire_deflection_est", "sprung_mass_est",
+           "z_u_est", "v_u_est", "susp_deflection_est", "tire_deflection_est", "sprung_mass_est", "mass_std",
            "road_class_est", "nis", "status", "iri_est")
 
 STATUS_OK, STATUS_REJECTED, STATUS_REINIT = 0, 1, 2
@@ -287,7 +287,8 @@ class SuspensionEstimator:
         # deficit of the error variance of a start from rest (see road_height_std): made at the
         # first model, None when the estimate has not (re)started from rest
         self._buildup: tuple[float, np.ndarray] | None = None
-        self._honest: tuple | None = None  # (model, class, key, ratio): see _honest_ratio
+        self._honest: tuple | None = None  # (model, class, key, ratio, q): see _honest_ratio
+        self._ref_q = 0.0  # 1/s, the filter's lag behind the reference (steady_state.reference_lag)
         self.reset_state(from_rest=True)
 
     # --- state -----------------------------------------------------------------------------
@@ -311,6 +312,7 @@ class SuspensionEstimator:
         self._from_rest = bool(from_rest)
         self._buildup = None
         self._offset: StartOffset | None = None  # estimate of z_0, made at the first output
+        self._x_int = 0.0  # m, integral of q x since the (re)start (steady_state.reference_lag)
         kf.P_post = None
         kf.unfreeze()
         if self.model is None or not kf.stationary():
@@ -338,19 +340,27 @@ class SuspensionEstimator:
         if m is None:
             return 1.0
         if isinstance(kf, MMEKF) or sol is None:
-            self._honest = (m, cls, None, 1.0)
+            self._honest = (m, cls, None, 1.0, 0.0)
+            self._ref_q = 0.0
             return 1.0
         key = (cls, round(math.log(max(m.speed, 0.1)) / math.log(1.05)), m.h)
         if hon is None or hon[2] != key:
             K, P = sol
+            veh = self.cfg.vehicle(self.m_model)
+            rm = self.cfg.tuning.road_model
+            q, ref = 0.0, None
+            if not self.cfg.tuning.start_offset:  # against the reference's truth (see start_offset)
+                q = reference_lag(m.Phi, m.H, K, m.h, rm.f_ref, rm.zeta_ref, veh, self.acc_sampling, IZR)
+                ref = (rm.f_ref, rm.zeta_ref, q)
             var = raw_error_variance(m.Phi, m.H, K, self.R, m.h, iso8608.class_psd_n0(cls), m.speed,
-                                     self.cfg.vehicle(self.m_model), self.acc_sampling, IZR)
+                                     veh, self.acc_sampling, IZR, reference=ref)
             ratio = var / float(P[IZR, IZR]) if P[IZR, IZR] > 0 else math.nan
             if not 0.0 < ratio <= 1e3:  # garbage from an ill-conditioned vehicle: keep P
                 ratio = 1.0
         else:
-            ratio = hon[3]
-        self._honest = (m, cls, key, ratio)
+            ratio, q = hon[3], hon[4]
+        self._honest = (m, cls, key, ratio, q)
+        self._ref_q = q
         return ratio
 
     def _deficit(self, t: float, h: float) -> float:
@@ -751,7 +761,13 @@ class SuspensionEstimator:
         if self._from_rest:
             var *= 1.0 - self._deficit(t_rel, h)
         shift = 0.0
-        if t_rel < START_TERM_SPAN:
+        if not cfg.tuning.start_offset and not isinstance(kf, MMEKF):
+            # the estimate relative to the reference (EstimatorConfig.start_offset): the start
+            # level is zero by definition; the filter's low-frequency lag is added back
+            if status != STATUS_REINIT and math.isfinite(x[IZR]):
+                self._x_int += self._ref_q * x[IZR] * h  # q at each step: no jump when q changes
+            shift = self._x_int
+        elif t_rel < START_TERM_SPAN:
             cls = self.assumed_class
             s0 = self._class_height_std.get(cls)
             if s0 is None:
@@ -786,6 +802,7 @@ class SuspensionEstimator:
         out["tire_deflection_est"] = x[IZU] - x[IZR]
         out["sprung_mass_est"] = float(self.mass_est.mass if self.mass_est is not None
                                        else cfg.m_s_nominal)
+        out["mass_std"] = float(self.mass_est.mass_std(h)) if self.mass_est is not None else 0.0
         out["road_class_est"] = int(self.classifier.road_class)
         out["nis"] = float(kf.nis)  # of the last update (kept through rejected steps)
         out["status"] = status
@@ -845,6 +862,7 @@ class SuspensionEstimator:
         out["susp_deflection_est"] = x[IZS] - x[IZU]
         out["tire_deflection_est"] = x[IZU] - x[IZR]
         out["sprung_mass_est"] = mass
+        out["mass_std"] = float(me.mass_std(h)) if f.mass is None and me is not None else 0.0
         out["road_class_est"] = int(self.classifier.road_class if f.road_class is None else f.road_class)
         out["nis"] = float(f.nis)
         out["status"] = status

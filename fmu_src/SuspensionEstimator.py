@@ -21,6 +21,7 @@ class SuspensionEstimator(ContractSlave):
         # the core validates its configuration and raises one message naming every bad parameter
         self.core = Core(EstimatorConfig(**{name: getattr(self, name) for name in _CONFIG}))
         self.sprung_mass_est = float(self.m_s_nominal)
+        self.mass_std = float(self.m_s_nominal)
 
     def step(self, t: float, h: float) -> None:
         # the measurements have no range in the contract: the core rejects non-finite ones (status 1)

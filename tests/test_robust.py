@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from suspension_estimation.estimators import SuspensionEstimator
-from suspension_estimation.harness.metrics import road_scores
+from suspension_estimation.harness.metrics import highpass, road_scores
 from suspension_estimation.plant import iso8608
 from suspension_estimation.plant.quarter_car import QuarterCar, SensorNoise
 from suspension_estimation.plant.road import SyntheticRoad
@@ -63,7 +63,15 @@ def test_road_holds_when_the_damper_or_spring_is_off(exact, factors):
     s = road_scores(t, road, zr, std, warmup=WARMUP)
     kf, _, _ = estimate(meas, road_estimator=0)
     s_kf = road_scores(t, kf, zr, warmup=WARMUP)
-    assert s["err_std_hp_pct"] < 1.5 * exact[0], (s, exact)
+    bound = 1.5 * exact[0]
+    if "k_s" in factors:
+        # the mass comes out off by the k_s error and carries it into the m_s a_s / k_t term of
+        # the road (benchmarks/identifiability_floor.py): that term, in quadrature, is the floor
+        e = abs(factors["k_s"] - 1)
+        cut = t >= WARMUP
+        term = 100 * np.std(highpass(e * NOMINAL.m_s * meas[:, 0] / NOMINAL.k_t, H)[cut]) / np.std(highpass(zr, H)[cut])
+        bound = 1.2 * np.hypot(exact[0], term)
+    assert s["err_std_hp_pct"] < bound, (s, exact, bound)
     assert s["err_std_hp_pct"] < 0.5 * s_kf["err_std_hp_pct"], (s, s_kf)
     assert 0.9 < s["gain_hp"] < 1.1
     # the mass: right where k_s is right; k_s / m_s is what the body equation identifies, so a

@@ -252,9 +252,14 @@ SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
     Var("acc_unsprung", "input", "Real", "m/s2", 0.0, "measured unsprung-mass acceleration"),
     Var("susp_deflection", "input", "Real", "m", 0.0, "measured suspension deflection z_s - z_u"),
     Var("vehicle_speed", "input", "Real", "m/s", 11.1111, "forward speed", _SPEED),
-    Var("road_height_est", "output", "Real", "m", None, "estimated road elevation"),
+    Var("road_height_est", "output", "Real", "m", None,
+        "estimated road elevation relative to the start level and a long-wavelength reference: the elevation "
+        "above the start, high-passed at 0.01 Hz (second order, damping 0.707, in time; harness.metrics."
+        "reference_road); the absolute level and a grade from the start are not observable and not estimated"),
     Var("road_velocity_est", "output", "Real", "m/s", None, "estimated time derivative of the road elevation"),
-    Var("road_height_std", "output", "Real", "m", None, "1-sigma uncertainty of road_height_est from the filter covariance"),
+    Var("road_height_std", "output", "Real", "m", None,
+        "1-sigma uncertainty of road_height_est against what it estimates (the referenced elevation, see "
+        "road_height_est), from the filter covariance and its steady-state error on a road of the online class"),
     Var("z_s_est", "output", "Real", "m", None, "estimated sprung-mass displacement"),
     Var("v_s_est", "output", "Real", "m/s", None, "estimated sprung-mass velocity"),
     Var("z_u_est", "output", "Real", "m", None, "estimated unsprung-mass displacement"),
@@ -262,6 +267,10 @@ SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
     Var("susp_deflection_est", "output", "Real", "m", None, "estimated suspension deflection z_s - z_u"),
     Var("tire_deflection_est", "output", "Real", "m", None, "estimated tyre deflection z_u - z_r"),
     Var("sprung_mass_est", "output", "Real", "kg", None, "estimated sprung mass"),
+    Var("mass_std", "output", "Real", "kg", None,
+        "standard error of sprung_mass_est (forgetting-factor RLS): small where the road excites the body, large "
+        "on a smooth road (2 mass_std above 1 % of the mass: the road does not excite it enough for +-1 %); "
+        "m_s_nominal (the prior) in the first second, 0 when the RLS does not estimate the mass"),
     _iri_output("iri_est", "road_height_est"),
     Var("road_class_est", "output", "Integer", None, None,
         "ISO 8608 class identified online (1..8 = A..H), 0 until enough road has been seen"),

@@ -1,0 +1,130 @@
+"""What road_height_est estimates on a real road (harness.metrics.reference_road), the honesty of
+road_height_std there, and the excitation report of the sprung mass (mass_std)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from suspension_estimation.estimators import SuspensionEstimator
+from suspension_estimation.estimators.model import IZR, RoadModel, reference_step_response
+from suspension_estimation.estimators.steady_state import reference_highpass, reference_lag, road_transfer
+from suspension_estimation.harness import metrics
+from suspension_estimation.harness.cosim import CoSimulation, System
+from suspension_estimation.harness.testroads import add_bump, add_pothole, add_sag, joined_iso, write_profile
+from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE
+
+WIRES = ("acc_sprung", "acc_unsprung", "susp_deflection")
+
+
+def test_reference_road_is_the_reference_high_pass():
+    """A level and a grade from the start give 0 (v0 the grade's rate); a step at t1 gives the
+    reference's step response (model.reference_step_response, closed form); a sinusoid, once the
+    start has died out, the gain |HP(f)| of the reference."""
+    t = np.arange(0.0, 300.0, 0.01)
+    assert np.abs(metrics.reference_road(t, 583.0 + 0 * t)).max() == 0.0
+    assert np.abs(metrics.reference_road(t, 2.0 + 0.3 * t, v0=0.3)).max() < 1e-9
+    step = np.where(t >= 50.0, 0.02, 0.0)
+    y = metrics.reference_road(t, step)
+    late = t >= 50.5
+    np.testing.assert_allclose(y[late], 0.02 * reference_step_response(t[late] - 50.0), atol=2e-5)
+    for f in (0.005, 0.03, 0.2):
+        y = metrics.reference_road(t, 0.5 * np.sin(2 * np.pi * f * t))
+        tail = t > 200.0
+        amp = 0.5 * abs(reference_highpass(np.array([f]), RoadModel.f_ref, RoadModel.zeta_ref)[0])
+        assert np.abs(y[tail]).max() == pytest.approx(amp, rel=0.01), f
+
+
+@pytest.mark.parametrize("kmh", [40.0, 72.0])
+def test_the_lag_correction_brings_the_filter_onto_the_reference(kmh):
+    """The road filter's own transfer T(f) misses HP(f) below the band by about q / s
+    (steady_state.reference_lag); T (1 + q / s) is within 1 % of HP(f) (relative) from 0.005 to
+    0.3 Hz, and at least twice as close as T alone below 0.02 Hz."""
+    est = SuspensionEstimator(mass_estimator=0, road_class=2)
+    for _ in range(200):
+        est.step(0.0, 0.0, 0.0, kmh / 3.6, 1e-3)
+    kf, m = est.anchor, est.anchor_model
+    K, _ = kf.stationary_solution
+    rm = RoadModel()
+    q = reference_lag(m.Phi, m.H, K, m.h, rm.f_ref, rm.zeta_ref, DEFAULT_VEHICLE, est.acc_sampling, IZR)
+    assert q == est._ref_q and q > 0
+    f = np.geomspace(0.005, 0.3, 20)
+    T = road_transfer(m.Phi, m.H, K, m.h, f, DEFAULT_VEHICLE, est.acc_sampling, IZR)
+    hp = reference_highpass(f, rm.f_ref, rm.zeta_ref)
+    corrected, alone = np.abs(T * (1 + q / (2j * np.pi * f)) / hp - 1), np.abs(T / hp - 1)
+    assert corrected.max() < 0.01
+    low = f < 0.02
+    assert corrected[low].max() < 0.5 * alone[low].max()
+
+
+def _closed_loop(dist, profile, kmh: float, seconds: float, road_class: int = 0, seed: int = 1):
+    comps = {"road": dist / "ISORoad.fmu", "plant": dist / "QuarterCar.fmu", "e": dist / "SuspensionEstimator.fmu"}
+    conn = [("vehicle_speed", "road.vehicle_speed"), ("road.road_height", "plant.road_height"),
+            ("vehicle_speed", "e.vehicle_speed")] + [(f"plant.{w}", f"e.{w}") for w in WIRES]
+    par = {"plant.noise_seed": seed}
+    if profile is not None:
+        par["road.profile_file"] = str(profile)
+    else:
+        par.update({"road.road_class": road_class, "road.seed": seed})
+    with CoSimulation(System(comps, conn), parameters=par, inputs={"vehicle_speed": kmh / 3.6, "plant.sprung_mass": 410.0},
+                      record=["road.road_height", "road.distance", "e.road_height_est", "e.road_height_std",
+                              "e.sprung_mass_est", "e.mass_std"]) as sim:
+        return sim.run(round(seconds / 1e-3) * 1e-3, 1e-3)
+
+
+def _coverage(rec) -> tuple[float, float, float]:
+    """(2-sigma coverage against the reference truth, rms error / rms std, coverage against
+    the absolute road) after the warm-up."""
+    t, est, std, road = rec["time"], rec["e.road_height_est"], rec["e.road_height_std"], rec["road.road_height"]
+    keep = t >= metrics.warmup_for(t)
+    e = (est - metrics.reference_road(t, road))[keep]
+    s = std[keep]
+    return (float(np.mean(np.abs(e) <= 2 * s)), float(np.sqrt(np.mean(e ** 2) / np.mean(s ** 2))),
+            float(np.mean(np.abs(est - road)[keep] <= 2 * s)))
+
+
+def test_road_std_is_honest_on_vertical_curves_at_an_absolute_level(dist, tmp_path):
+    """Through the FMUs at 72 km/h, ISO B with a 2 m sag over 300 m, a 0.5 m crest over 100 m and
+    a 1 m sag over 150 m, 583 m above the datum: +-2 road_height_std covers most of the errors
+    against the reference truth, the std is the size of the error, and the absolute road is not
+    what is estimated (it is covered nowhere)."""
+    s, h = joined_iso([2], [600.0], seed=3)
+    h = add_sag(s, h, 50.0, 300.0, 2.0)
+    h = add_sag(s, add_sag(s, h, 380.0, 100.0, -0.5), 440.0, 150.0, 1.0)
+    rec = _closed_loop(dist, write_profile(tmp_path / "curves.csv", s, h, level=583.0), 72.0, 29.0)
+    cov, ratio, cov_abs = _coverage(rec)
+    assert cov > 0.85 and 0.4 < ratio < 2.0, (cov, ratio)
+    assert cov_abs < 0.05
+
+
+def test_road_std_is_honest_on_a_grade_with_a_bump_and_a_pothole(dist, tmp_path):
+    """Through the FMUs at 72 km/h, ISO B on a 3 % grade from the start with a 30 mm bump (0.5 m)
+    and a 30 mm pothole (0.4 m): the grade is not in the estimate, the events are, and
+    +-2 road_height_std covers most errors; near the events the error stays below 4 std."""
+    s, h = joined_iso([2], [600.0], seed=4)
+    h = add_pothole(s, add_bump(s, h + 0.03 * s, 250.0, 0.5, 0.03), 400.0, 0.4, 0.03)
+    rec = _closed_loop(dist, write_profile(tmp_path / "grade.csv", s, h), 72.0, 29.0)
+    cov, ratio, _ = _coverage(rec)
+    assert cov > 0.85 and 0.4 < ratio < 2.0, (cov, ratio)
+    t, d = rec["time"], rec["road.distance"]
+    e = np.abs(rec["e.road_height_est"] - metrics.reference_road(t, rec["road.road_height"]))
+    for at in (250.0, 400.0):
+        near = np.abs(d - at) < 3.0
+        assert (e[near] < 4 * rec["e.road_height_std"][near]).all(), at
+
+
+def test_mass_std_reports_the_excitation(dist):
+    """Through the FMUs at 40 km/h, 410 kg: on ISO A the regressor (the body acceleration) is 4
+    times smaller in amplitude than on ISO C (Gd(n0) 16 times smaller) and the sensor noise the
+    same, so mass_std is about 4 times as large; on both, the mass is
+    within +-1 % or mass_std says it cannot be (2 mass_std > 1 %) at least 90 % of the time, and
+    2 mass_std covers most of the errors."""
+    out = {}
+    for cls in (1, 3):
+        rec = _closed_loop(dist, None, 40.0, 20.0, road_class=cls, seed=5)
+        keep = rec["time"] >= 5.0
+        m, sd = rec["e.sprung_mass_est"][keep], rec["e.mass_std"][keep]
+        err = np.abs(m - 410.0)
+        ok = (err <= 0.01 * 410.0) | (2 * sd > 0.01 * m)
+        assert ok.mean() > 0.9 and (err <= 2 * sd).mean() > 0.8, (cls, ok.mean(), (err <= 2 * sd).mean())
+        out[cls] = float(np.sqrt(np.mean(sd ** 2)))
+    assert 2.5 < out[1] / out[3] < 6.0, out
