@@ -42,6 +42,7 @@ class RoadFilter:
             ``mass_estimator`` 1 then estimates it and passes it on through ``set_mass``).
         h: s, the step its model is built for (None before the first step).
         model_builds: how many times it (re-)built its model: a test counts them.
+        road_class: the last class given to ``set_road_class`` (0 = none yet).
     """
 
     x: list[float]
@@ -50,6 +51,7 @@ class RoadFilter:
     mass: float | None = None
     h: float | None = None
     model_builds: int = 0
+    road_class: int = 0
 
     def __init__(self, cfg: "EstimatorConfig"):
         self.cfg = cfg
@@ -65,6 +67,11 @@ class RoadFilter:
 
     def set_mass(self, m_s: float) -> None:
         """The sprung mass (kg) the composer's mass estimator identified; ignored by default."""
+
+    def set_road_class(self, road_class: int) -> None:
+        """The ISO class (1..8) the composer's classifier identified online (road_class.py), when
+        it changes; ``road_class`` keeps it. Ignored by default."""
+        self.road_class = int(road_class)
 
     def reset(self) -> None:
         """Back to the start state (the composer calls it after a non-finite estimate)."""
@@ -93,6 +100,8 @@ ROAD_ESTIMATORS: dict[int, Code] = {
 MASS_ESTIMATORS: dict[int, Code] = {
     0: Code("off"),
     1: Code("forgetting-factor RLS"),
+    2: Code("IMM", "imm_filter:IMMRoad", roads=(0,)),
+    4: Code("moving-bank IMM", "imm_filter:MovingIMMRoad", roads=(0,)),
 }
 
 

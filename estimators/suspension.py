@@ -60,6 +60,7 @@ from ..plant.quarter_car import NOISE_STD_RANGES
 from ..plant.step_size import same_step
 from ..plant.vehicle import Vehicle, VEHICLE_RANGES, check_range
 
+from .imm_filter import imm_problems
 from .interface import RoadFilter, code_problems, composed_factory, state_list
 from .kalman import LinearKF, MMEKF, error_buildup
 from .mass import MassEstimator
@@ -131,7 +132,7 @@ class EstimatorConfig:
     k_t: float = 183000.0  # N/m
     c_s: float = 2000.0  # N.s/m
     road_estimator: int = 2  # 0 = KF, 1 = MME&KF, 2 = KF with a suspension-force error state
-    mass_estimator: int = 1  # 0 = off, 1 = forgetting-factor RLS
+    mass_estimator: int = 1  # 0 = off, 1 = forgetting-factor RLS, 2 = IMM, 4 = moving-bank IMM
     mass_feedback: bool = True  # rebuild the road filter at the estimated mass
     forgetting_factor: float = 0.995  # RLS lambda per sample, 0.9 < lambda <= 1
     road_class: int = 0  # 0 = identify online, 1..8 = assume A..H
@@ -218,6 +219,14 @@ class EstimatorConfig:
     refilter_confirm: float = 0.5  # s of agreement of data and model mass that close an episode
     snapshot_interval: float = 0.02  # s between filter snapshots
     iri_segment: float = 100.0  # m, segments of the IRI of the road estimate (plant/iri.py)
+    # mass_estimator 2 and 4, the IMM of paper 002 (imm_filter.py): the fixed bank's range (kg)
+    # and number of models (code 2), the probability of keeping the model per step (both), the
+    # sub-models' road corner (1/m, beyond the contract; docs/imm.md)
+    imm_mass_min: float = 250.0
+    imm_mass_max: float = 550.0
+    imm_models: int = 7
+    imm_stay: float = 0.999
+    imm_road_n_hi: float = 30.0
 
     def vehicle(self, m_s: float | None = None) -> Vehicle:
         return Vehicle(m_s=self.m_s_nominal if m_s is None else m_s, m_u=self.m_u, k_s=self.k_s,
@@ -247,6 +256,7 @@ class EstimatorConfig:
                                 low_inclusive=False))
         msgs.append(check_range("default_class", self.default_class, 1, 8))
         msgs.append(check_range("q_class_min", self.q_class_min, 1, 8))
+        msgs += imm_problems(self)
         return [m for m in msgs if m]
 
 
@@ -882,7 +892,8 @@ class SuspensionEstimator:
         else:
             mass = float(cfg.m_s_nominal)
         if status != STATUS_REINIT:
-            self.classifier.update(self.distance, x[IZR], speed)
+            if self.classifier.update(self.distance, x[IZR], speed) != f.road_class:
+                f.set_road_class(self.classifier.road_class)
         out = self.outputs
         out["road_height_est"] = x[IZR]
         out["road_velocity_est"] = x[IVR]

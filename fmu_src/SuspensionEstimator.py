@@ -7,7 +7,7 @@ from suspension_estimation.suspension_fmi.slave import ContractSlave
 # contract parameters that configure the core under the same name
 _CONFIG = ("m_s_nominal", "m_u", "k_s", "k_t", "c_s", "road_estimator", "mass_estimator", "mass_feedback",
            "forgetting_factor", "road_class", "acc_sprung_noise_std", "acc_unsprung_noise_std", "defl_noise_std",
-           "acc_sampling", "iri_segment")
+           "acc_sampling", "iri_segment", "imm_mass_min", "imm_mass_max", "imm_models", "imm_stay")
 
 
 class SuspensionEstimator(ContractSlave):
