@@ -18,6 +18,7 @@ STUDIES = {  # --study NAME: "module:object" under harness.studies
     "mass": "paper001:MASS",  # vehicle-mass paper, the 260 -> 450 -> 350 kg case
     "class": "road_class:CLASS",  # online ISO 8608 class, A..E at 10-30 m/s
     "robust": "robust:ROBUST",  # the plant off the estimators' model (vehicle offsets)
+    "imm": "imm:IMM",  # IMM paper, Fig. 6 scenario, on and off the bank's grid, damping off
 }
 
 
