@@ -22,8 +22,8 @@ filter's q_class_min).
 
 Per segment: steady error = mean |error| over its last 40 %, settling = time after the step
 until the estimate stays within ±5 % (the harness's band for paper 001). Prints markdown per
-schedule, ISO class and estimator: mean and worst over seeds and segments, and the share of segments meeting the targets of issue
-14 point 2 (steady <= 1 %, settling <= 0.5 s; <= 2 % steady with the damping off).
+schedule, ISO class and estimator: mean and worst over seeds and segments, and the share of segments meeting the
+targets (steady <= 1 %, settling <= 0.5 s; <= 2 % steady with the damping off).
 """
 from __future__ import annotations
 

@@ -246,8 +246,8 @@ class MassIMM(IMM):
 
 
 class MovingMassIMM(MassIMM):
-    """A MassIMM whose bank follows the mass, for masses between any fixed grid's points (issue
-    14, point 2; not in paper 002, whose fixed bank snaps to its nearest model).
+    """A MassIMM whose bank follows the mass, for masses between any fixed grid's points (not
+    in paper 002, whose fixed bank snaps to its nearest model).
 
     r models at c + k d, k = -(r-1)/2 .. (r-1)/2, around a centre c (kg) with spacing d (kg).
     The log-likelihoods of the models are summed since the bank was last built, and every
