@@ -157,7 +157,8 @@ class IMMStudy(Study):
                  f"{SEGMENT:g} s segments " + " → ".join(
                      f"{CLASS_LETTERS[c - 1]} / {v:g} m/s" for c, v in zip(CLASSES, SPEEDS))
                  + f", seeds 1..{suite.seeds}, {1e3 * suite.step:g} ms; the estimators start at {NOMINAL_MASS:g} kg. "
-                 "Steady = mean |mass error| over the last 40 % of a segment; settling to ±5 % after its start; "
+                 "Steady = mean |mass error| over the last 40 % of a segment; settling = last time outside ±5 % "
+                 "after its start (the first segment's from the start of the run at 410 kg); "
                  f"HP = 100 std(HP road error) / std(HP road) from {HP_SKIP:g} s after its start; class = share of "
                  "samples at the segment's class from one classifier window after its start. Mean over seeds "
                  "(worst in brackets).", ""]
@@ -193,12 +194,14 @@ class IMMStudy(Study):
                 if not segs:
                     continue
                 st = np.array([s["steady_pct"] for s in segs])
-                se = np.array([s["settle_s"] for s in segs])
+                # settling after each payload step: the first segment starts the run (its
+                # settling from m_s_nominal is in the table, not a target)
+                se = np.array([s["settle_s"] for r in runs for s in r["estimators"][lab][1:]])
                 ok = bool(np.all(st <= target) and np.all(se <= TARGET_SETTLE))
-                out.append((f"{lab}, {variant}: steady mass error ≤ {target:g} % and settling ≤ {TARGET_SETTLE:g} s "
-                            f"in every segment", verdict(ok),
-                            f"steady {mean_std(st)} %, worst {worst(st)} %; settling worst {worst(se)} s "
-                            f"({len(segs)} segments)"))
+                out.append((f"{lab}, {variant}: steady mass error ≤ {target:g} % in every segment and settling "
+                            f"≤ {TARGET_SETTLE:g} s after each step", verdict(ok),
+                            f"steady {mean_std(st)} %, worst {worst(st)} %; settling after the steps worst "
+                            f"{worst(se)} s ({len(segs)} segments)"))
         return out
 
 
