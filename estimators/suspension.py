@@ -220,13 +220,14 @@ class EstimatorConfig:
     snapshot_interval: float = 0.02  # s between filter snapshots
     iri_segment: float = 100.0  # m, segments of the IRI of the road estimate (plant/iri.py)
     # mass_estimator 2 and 4, the IMM of paper 002 (imm_filter.py): the fixed bank's range (kg)
-    # and number of models (code 2), the probability of keeping the model per step (both), the
-    # sub-models' road corner (1/m, beyond the contract; docs/imm.md)
+    # and number of models (code 2), the probability of keeping the model per step (both); beyond
+    # the contract the sub-models' road corner (1/m) and the mass window (docs/imm.md)
     imm_mass_min: float = 250.0
     imm_mass_max: float = 550.0
     imm_models: int = 7
     imm_stay: float = 0.999
     imm_road_n_hi: float = 30.0
+    imm_window: float = 0.25  # s, code 2: the mass is the mean over this window (0 = none)
 
     def vehicle(self, m_s: float | None = None) -> Vehicle:
         return Vehicle(m_s=self.m_s_nominal if m_s is None else m_s, m_u=self.m_u, k_s=self.k_s,
