@@ -77,8 +77,8 @@ MASS_ESTIMATORS: dict[int, tuple[str, str]] = {
     0: ("off", "off: the mass stays m_s_nominal"),
     1: ("forgetting-factor RLS", "forgetting-factor RLS on the suspension force balance (paper 001)"),
     2: ("IMM", "interacting multiple model (paper 002, eqs. 18-32): imm_models Kalman filters at sprung masses "
-               "spread over imm_mass_min..imm_mass_max, the mass from the model probabilities, the road from the "
-               "mixed filter; needs road_estimator 0"),
+               "spread over imm_mass_min..imm_mass_max, the mass from the model probabilities (mean over 0.25 s), the "
+               "road from the mixed filter; needs road_estimator 0"),
     4: ("moving-bank IMM", "IMM whose five sub-models follow the mass (between any grid points as on them), "
                            "starting at m_s_nominal; needs road_estimator 0"),
 }
