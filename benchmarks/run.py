@@ -11,13 +11,15 @@ from a fresh object, so it includes the start-up transient of ``--steps`` sample
 - cores (plain Python, no FMI): the road-profile filter alone (KF; MME&KF: road_class = 3,
   no mass estimator), the default estimator (KF + RLS mass with feedback + online class), the
   VB-AKF (road_estimator 4 with ``--vb-iterations``, otherwise the defaults: RLS mass, response
-  classifier; its step against the default's is a ratio of the table), the
+  classifier; its step against the default's is a ratio of the table), the IMM
+  (road_estimator 0 with mass_estimator 2, paper 002's fixed bank, and 4, the moving bank), the
   RLS mass estimator alone (``MassEstimator.update``), the road generator (``SyntheticRoad.eval``)
   and the plant (``QuarterCar.step``). The estimators are fed the measurements of a plain-Python
   road + plant simulation: random input would make most samples outliers and time the wrong path.
 - FMU rounds through ``fmpy.fmi2.FMU2Slave``: setReal(all Real inputs) + doStep + getReal(all
   Real outputs) [+ getInteger(all Integer outputs)], for dist/ISORoad.fmu, dist/QuarterCar.fmu,
-  dist/SuspensionEstimator.fmu (default parameters, and road_estimator 4; the same measurements as
+  dist/SuspensionEstimator.fmu (default parameters, road_estimator 4, and mass_estimator 2 and 4,
+  whose step is reported relative to the default's, target <= 5; the same measurements as
   input) and a trivial
   pythonfmu FMU (one Real input u, one Real output y = u) built here into a temporary folder as
   the yardstick of the FMI plumbing.
@@ -151,6 +153,8 @@ def estimator_configs() -> dict:
         "UKF (5)": EstimatorConfig(road_estimator=5, mass_estimator=0, road_class=ROAD_CLASS, **NONLINEAR_MAPS),
         "dual observer (3, 3)": EstimatorConfig(road_estimator=3, mass_estimator=3, road_class=ROAD_CLASS,
                                                 **NONLINEAR_MAPS),
+        "IMM": EstimatorConfig(road_estimator=0, mass_estimator=2),
+        "moving IMM": EstimatorConfig(road_estimator=0, mass_estimator=4),
     }
 
 
@@ -357,6 +361,14 @@ def bench_fmus(data: dict, steps: int, repeat: int, tmp: Path, dist: Path) -> tu
               tag="_vb")
     cases.append((VB_FMU, s, s.vr("acc_sprung", "acc_unsprung", "susp_deflection", "vehicle_speed"),
                   [[a, u, d, SPEED] for a, u, d in meas], {"vehicle_speed": SPEED}))
+    for code, label in ((2, "SuspensionEstimator.fmu, IMM (mass_estimator 2)"),
+                        (4, "SuspensionEstimator.fmu, moving IMM (mass_estimator 4)")):
+        # a copy under its own name: every Slave extracts into tmp / the FMU's stem
+        copy = tmp / f"SuspensionEstimator_imm{code}.fmu"
+        shutil.copy(dist / "SuspensionEstimator.fmu", copy)
+        s = Slave(copy, tmp, {"road_estimator": 0, "mass_estimator": code})
+        cases.append((label, s, s.vr("acc_sprung", "acc_unsprung", "susp_deflection", "vehicle_speed"),
+                      [[a, u, d, SPEED] for a, u, d in meas], {"vehicle_speed": SPEED}))
     raw = hasattr(cases[0][1].fmu, "_functions")
     for name, s, in_vrs, rows, init in cases:
         sizes = dict(inputs=len(in_vrs), real_outputs=len(s.real_outputs), int_outputs=len(s.int_outputs))
@@ -506,6 +518,8 @@ def table(res: dict) -> str:
                      ("default estimator", "core: default estimator (KF + RLS mass + online class)"),
                      ("VB-AKF", f"core: VB-AKF, road_estimator 4, vb_iterations {VB_ITERATIONS[0]} "
                                 "(+ RLS mass + response class)"),
+                     ("IMM", "core: IMM (road_estimator 0, mass_estimator 2: 7 models)"),
+                     ("moving IMM", "core: moving-bank IMM (road_estimator 0, mass_estimator 4: 5 models)"),
                      ("RLS mass", "core: RLS mass alone (MassEstimator.update)"),
                      ("EKF (3)", "core: EKF, road_estimator 3 (nonlinear maps, no mass)"),
                      ("UKF (5)", "core: UKF, road_estimator 5 (nonlinear maps, no mass)"),
@@ -563,6 +577,14 @@ def analyse(res: dict) -> None:
             "what": f"core {k} step ÷ default estimator core step",
             "value": cores[k]["us_per_step"] / cores["default estimator"]["us_per_step"], "target": "(info)",
             "met": None}
+    for key, label in (("IMM", "IMM"), ("moving IMM", "moving-bank IMM")):
+        fmu_key = next(k for k in fmus if k.startswith("SuspensionEstimator.fmu, ") and k.endswith(
+            "(mass_estimator 2)" if key == "IMM" else "(mass_estimator 4)"))
+        for what, a, b in (("core step", cores[key]["us_per_step"], cores["default estimator"]["us_per_step"]),
+                           ("FMU round", fmus[fmu_key]["us_per_step"], est_fmu)):
+            res["ratios"][f"{key.replace(' ', '_')}_{what.replace(' ', '_')}_over_default"] = {
+                "what": f"{label} {what} ÷ default estimator {what}", "value": a / b, "target": "≤ 5",
+                "met": a / b <= 5}
     core_sum = (cores["road generator"]["us_per_step"] + cores["plant"]["us_per_step"]
                 + cores["default estimator"]["us_per_step"])
     rounds = sum(fmus[k]["us_per_step"] for k in ("ISORoad.fmu", "QuarterCar.fmu", "SuspensionEstimator.fmu"))

@@ -69,6 +69,10 @@ class RoadFilter:
     def set_mass(self, m_s: float) -> None:
         """The sprung mass (kg) the composer's mass estimator identified; ignored by default."""
 
+    def set_road_class(self, road_class: int) -> None:
+        """The ISO class (1..8) the composer's classifier identified online (road_class.py), each
+        time it changes. Ignored by default."""
+
     def reset(self) -> None:
         """Back to the start state (the composer calls it after a non-finite estimate)."""
         raise NotImplementedError
@@ -99,7 +103,9 @@ ROAD_ESTIMATORS: dict[int, Code] = {
 MASS_ESTIMATORS: dict[int, Code] = {
     0: Code("off"),
     1: Code("forgetting-factor RLS"),
+    2: Code("IMM", "imm_filter:IMMRoad", roads=(0,)),
     3: Code("dual observer", "airspring_observers:DualObserverFilter", roads=(3, 5)),
+    4: Code("moving-bank IMM", "imm_filter:MovingIMMRoad", roads=(0,)),
 }
 
 

@@ -61,6 +61,7 @@ from ..plant.step_size import same_step
 from ..plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_DAMPER
 from ..plant.vehicle import Vehicle, VEHICLE_RANGES, check_range
 
+from .imm_filter import imm_problems
 from .interface import RoadFilter, code_problems, composed_factory, state_list
 from .kalman import LinearKF, MMEKF, error_buildup
 from .mass import MassEstimator
@@ -134,7 +135,7 @@ class EstimatorConfig:
     k_t: float = 183000.0  # N/m
     c_s: float = 2000.0  # N.s/m
     road_estimator: int = 2  # 0 = KF, 1 = MME&KF, 2 = KF with a suspension-force error state
-    mass_estimator: int = 1  # 0 = off, 1 = forgetting-factor RLS
+    mass_estimator: int = 1  # 0 = off, 1 = forgetting-factor RLS, 2 = IMM, 4 = moving-bank IMM
     mass_feedback: bool = True  # rebuild the road filter at the estimated mass
     forgetting_factor: float = 0.995  # RLS lambda per sample, 0.9 < lambda <= 1
     road_class: int = 0  # 0 = identify online, 1..8 = assume A..H
@@ -164,6 +165,12 @@ class EstimatorConfig:
     vb_iterations: int = 6
     vb_forgetting: float = 1.0 - math.exp(-4.0)
     vb_tau: float = 0.0
+    # mass_estimator 2 and 4, the IMM of paper 002 (imm_filter.py): the fixed bank's range (kg)
+    # and number of models (code 2), the probability of keeping the model per step (both)
+    imm_mass_min: float = 250.0
+    imm_mass_max: float = 550.0
+    imm_models: int = 7
+    imm_stay: float = 0.999
     # everything else is a fixed choice, with its reason, in tuning.py
     tuning: Tuning = TUNING
 
@@ -195,6 +202,7 @@ class EstimatorConfig:
         if not any(m and m.startswith(("road_estimator", "mass_estimator")) for m in msgs):
             from .airspring_observers import config_problems  # the nonlinear model's parameters
             msgs += config_problems(self)
+        msgs += imm_problems(self)
         return [m for m in msgs if m]
 
 
@@ -853,7 +861,9 @@ class SuspensionEstimator:
         else:
             mass = float(cfg.m_s_nominal)
         if status != STATUS_REINIT:
-            self.classifier.update(self.distance, x[IZR], speed)
+            before = self.classifier.road_class
+            if self.classifier.update(self.distance, x[IZR], speed) != before:
+                f.set_road_class(self.classifier.road_class)
         out = self.outputs
         out["road_height_est"] = x[IZR]
         out["road_velocity_est"] = x[IVR]

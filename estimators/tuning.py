@@ -97,6 +97,13 @@ class Tuning:
     refilter_lookback: float = 0.1  # s before the RLS change detection (it comes up to 85 ms late)
     refilter_confirm: float = 0.5  # s of agreement of data and model mass that close an episode
     snapshot_interval: float = 0.02  # s between filter snapshots
+    # mass_estimator 2 and 4 (imm_filter.py, docs/imm.md): the road corner of the IMM's
+    # sub-models (1/m; near 2 kHz at 20 m/s: with paper 002's 200 Hz the bank was fragile, 17 % of
+    # a segment outside +-5 %), and the window (s) code 2's mass is averaged over, as the paper
+    # does (Table 4): on its grid the bank jumps to a neighbour for 1-60 ms now and then, the
+    # window cut the excursions beyond +-5 % from 166 to 4 in 25 s on ISO A; 0 = none
+    imm_road_n_hi: float = 30.0
+    imm_window: float = 0.25
 
     def problems(self) -> list[str]:
         """Messages naming each invalid value and its allowed range (empty when valid)."""

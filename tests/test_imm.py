@@ -163,3 +163,34 @@ def test_bad_input_is_refused_with_the_reason():
         MovingMassIMM(400.0, Vehicle(), SPEED, 1e-4, H, STD, d_min=0.2, d_max=0.1)
     with pytest.raises(ValueError, match="R must be"):
         IMM([np.eye(2)] * 2, [np.eye(2)] * 2, np.eye(2), np.eye(3), transition_matrix(2, 0.9))
+
+
+def test_update_with_some_channels_equals_filterpy_on_those_channels():
+    """``update(z, rows)`` (a channel left out) equals filterpy's IMMEstimator whose filters see
+    only those rows of H and R; ``predict_only`` leaves the probabilities at the predicted ones."""
+    gd = iso8608.class_psd_n0(3)
+    imm = MassIMM(MASSES, Vehicle(), SPEED, gd, H, STD, stay=0.995, P0=P0)
+    rows = np.array([0, 2])
+    filters = []
+    for d in imm.models:
+        f = KalmanFilter(6, 2)
+        f.F, f.Q, f.H, f.R = d.Phi.copy(), d.Q.copy(), d.H[rows].copy(), imm.R[np.ix_(rows, rows)].copy()
+        f.x, f.P = np.zeros((6, 1)), P0.copy()
+        filters.append(f)
+    ref = IMMEstimator(filters, np.full(len(MASSES), 1.0 / len(MASSES)), imm.M.copy())
+    true = DiscreteModel.build(Vehicle(m_s=400.0), SPEED, gd, H)
+    rng = np.random.default_rng(3)
+    L = np.linalg.cholesky(true.Q + 1e-30 * np.eye(6))
+    x = np.zeros(6)
+    for _ in range(300):
+        x = true.Phi @ x + L @ rng.standard_normal(6)
+        z = true.H @ x + np.array(STD) * rng.standard_normal(3)
+        imm.predict()
+        imm.update(z, rows)
+        ref.predict()
+        ref.update(z[rows].reshape(2, 1))
+        assert np.max(np.abs(imm.x - ref.x[:, 0])) <= 1e-9 * np.max(np.abs(ref.x))
+        assert np.max(np.abs(imm.mu - ref.mu)) < 1e-9
+    cbar = imm.mu @ imm.M
+    imm.predict_only()
+    assert np.allclose(imm.mu, cbar, rtol=1e-14) and np.allclose(imm.x, imm.mu @ imm.xs)

@@ -85,9 +85,14 @@ ROAD_ESTIMATORS: dict[int, tuple[str, str]] = {
 MASS_ESTIMATORS: dict[int, tuple[str, str]] = {
     0: ("off", "off: the mass stays m_s_nominal"),
     1: ("forgetting-factor RLS", "forgetting-factor RLS on the suspension force balance (paper 001)"),
+    2: ("IMM", "interacting multiple model (paper 002, eqs. 18-32): imm_models Kalman filters at sprung masses "
+               "spread over imm_mass_min..imm_mass_max, the mass from the model probabilities (mean over 0.25 s), the "
+               "road from the mixed filter; needs road_estimator 0"),
     3: ("dual observer",
         "paper 003's dual observer: a Kalman filter on 1/sprung mass from the body acceleration, exchanging "
         "estimates every step with the state filter of road_estimator 3 (EKF) or 5 (UKF), which it needs"),
+    4: ("moving-bank IMM", "IMM whose five sub-models follow the mass (between any grid points as on them), "
+                           "starting at m_s_nominal; needs road_estimator 0"),
 }
 
 
@@ -224,6 +229,14 @@ SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
         "re-build the road estimator's model at the estimated sprung mass (joint road + mass estimation)"),
     _real_param("forgetting_factor", "1", 0.995, "RLS forgetting factor lambda, 0.9 < lambda <= 1",
                 (0.9, 1.0, False, True)),
+    _real_param("imm_mass_min", "kg", 250.0, "mass_estimator 2: sprung mass of the lightest sub-model of the bank",
+                VEHICLE_RANGES["m_s"]),
+    _real_param("imm_mass_max", "kg", 550.0, "mass_estimator 2: sprung mass of the heaviest sub-model of the bank "
+                "(above imm_mass_min)", VEHICLE_RANGES["m_s"]),
+    Var("imm_models", "parameter", "Integer", None, 7,
+        "mass_estimator 2: number of sub-models, evenly spaced from imm_mass_min to imm_mass_max", (2, 25)),
+    _real_param("imm_stay", "1", 0.999, "mass_estimator 2 and 4: probability of keeping the sub-model per step "
+                "(Markov transition matrix: the rest shared equally among the others)", (0.0, 1.0, False, False)),
     Var("road_class", "parameter", "Integer", None, 0,
         "0 = identify the ISO class online and schedule Q/R from it; 1..8 = assume that class (A..H)",
         {0: "identify online", **_CLASSES}),

@@ -20,6 +20,7 @@ STUDIES = {  # --study NAME: "module:object" under harness.studies
     "robust": "robust:ROBUST",  # the plant off the estimators' model (vehicle offsets, nonlinear plant)
     "vb": "vb:VB_STUDY",  # paper 004: VB-AKF ARMSE table, the smoother's share, a loosening sensor mount
     "paper003": "paper003:PAPER003",  # paper 003: EKF, UKF, dual observer on the nonlinear plant
+    "imm": "imm:IMM",  # IMM paper, Fig. 6 scenario, on and off the bank's grid, damping off
 }
 
 
