@@ -27,7 +27,7 @@ from a fresh object, so it includes the start-up transient of ``--steps`` sample
   scenario, recording what ``python -m suspension_estimation.harness run default`` records): µs per step and the
   real-time factor (simulated time / wall time).
 
-It prints a markdown table with the ratios of issue 5 (estimator FMU round / trivial FMU round,
+It prints a markdown table with the speed ratios (estimator FMU round / trivial FMU round,
 target <= 2; real-time factor of the closed loop, target >= 20), marked as measured, never
 asserted, and writes JSON (default benchmarks/results.json). ``--profile`` adds a cProfile of
 the default estimator's step and of the closed loop.

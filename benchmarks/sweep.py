@@ -10,7 +10,7 @@ a Dask LocalCluster of ``--workers`` processes (``harness.sweep.execute``, as ``
 harness sweep`` does). Both are warm: before the clock starts, every process has extracted the
 FMUs and made its CoSimulation (one 0.1 s run each), so the figures are the steady state of a
 long sweep; the cluster's start-up is timed separately. Ratio = serial wall time / parallel wall
-time (issue 5 target: >= 1.8 with 2 workers).
+time (target: >= 1.8 with 2 workers).
 
 Memory: ``--memory-runs`` short runs on the cluster; every row records the resident memory of
 its worker after the run (``worker_rss_mb``), and the script prints, per worker, the RSS after

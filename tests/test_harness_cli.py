@@ -34,7 +34,7 @@ acc_sprung_noise_std = 0.0
 
 # Refusal tests run road -> plant only: a process that ran QuarterCar and SuspensionEstimator for
 # a few steps sometimes aborts at exit ("corrupted double-linked list", in library finalizers),
-# also with tests/fmu_driver.py alone; see the note of issue 2.
+# also with tests/fmu_driver.py alone (PythonFMU issue 229, docs/native-hosts.md).
 ROAD_PLANT = 'system = "road_plant"\n'
 
 
