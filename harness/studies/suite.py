@@ -140,7 +140,7 @@ class PaperStudy:
     def markdown(self) -> str:
         L = [f"# Paper tables through the FMUs ({self.dist})", "",
              f"Seeds 1..{self.seeds} (road seed i, noise seed {NOISE_SEED_OFFSET}+i); {self.duration:g} s runs at "
-             f"{1e3 * self.step:g} ms, scored after a {self.warmup:g} s warm-up; 40 km/h; mean ± std (ddof 1) over "
+             f"{1e3 * self.step:g} ms, scored after a {self.warmup:g} s warm-up; mean ± std (ddof 1) over "
              "seeds. HP = estimate and truth through the same zero-phase 0.5 Hz high-pass first.", ""]
         sections = [m for m in (s.markdown(self) for s in self.chosen()) if m]
         for i, m in enumerate(sections):
