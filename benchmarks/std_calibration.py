@@ -27,6 +27,17 @@ WINDOWS = ((10, 20), (20, 30), (30, 45), (45, 70), (10, 70))
 T, H, SPEED = 70.0, 1e-3, 40 / 3.6
 
 
+def drive(road, car, est, speed: float, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """n steps of H at ``speed`` (m/s): road estimate, true road and road_height_std (m)."""
+    e, r, s = np.empty(n), np.empty(n), np.empty(n)
+    for k in range(n):
+        r[k] = road.height(speed * (k + 1) * H)
+        car.step(r[k], H)
+        o = est.step(*car.measured, speed, H)
+        e[k], s[k] = o["road_height_est"], o["road_height_std"]
+    return e, r, s
+
+
 def run(cls: int, seed: int, start_offset: bool, speed: float = SPEED) -> dict:
     """One 70 s core run: per-window sums of squared error and std, and the run's scores."""
     from suspension_estimation.estimators import SuspensionEstimator
@@ -41,12 +52,7 @@ def run(cls: int, seed: int, start_offset: bool, speed: float = SPEED) -> dict:
     car.settle(road.height(0.0))
     est = SuspensionEstimator(mass_estimator=0, road_class=0, start_offset=start_offset)
     n = int(round(T / H))
-    e, r, s = np.empty(n), np.empty(n), np.empty(n)
-    for k in range(n):
-        r[k] = road.height(speed * (k + 1) * H)
-        car.step(r[k], H)
-        o = est.step(*car.measured, speed, H)
-        e[k], s[k] = o["road_height_est"], o["road_height_std"]
+    e, r, s = drive(road, car, est, speed, n)
     t = np.arange(1, n + 1) * H
     sc = road_scores(t, e, r, s, reference=not start_offset)
     if not start_offset:  # the default: against what the estimate estimates (metrics.reference_road)
@@ -76,12 +82,7 @@ def grid_run(case: str, cls: int, kmh: float, seed: int, duration: float) -> dic
     told = DEFAULT_VEHICLE.with_(**NOMINAL)
     est = SuspensionEstimator(m_s_nominal=told.m_s, m_u=told.m_u, k_s=told.k_s, k_t=told.k_t, c_s=told.c_s)
     v, n = kmh / 3.6, int(round(duration / H))
-    e, r, sd = np.empty(n), np.empty(n), np.empty(n)
-    for k in range(n):
-        r[k] = road.height(v * (k + 1) * H)
-        car.step(r[k], H)
-        o = est.step(*car.measured, v, H)
-        e[k], sd[k] = o["road_height_est"], o["road_height_std"]
+    e, r, sd = drive(road, car, est, v, n)
     sc = road_scores(np.arange(1, n + 1) * H, e, r, sd, warmup=10.0)
     return {"case": case, "cls": cls, "kmh": kmh, "seed": seed, "cov": sc["coverage_2sigma"],
             "raw": sc["err_std_raw_pct"], "rmse": sc["rmse_raw_mm"],

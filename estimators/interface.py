@@ -133,6 +133,16 @@ def composed_factory(road: int, mass: int) -> type[RoadFilter] | None:
     return getattr(importlib.import_module(f".{module}", __package__), cls)
 
 
+def preload() -> None:
+    """Import every registered estimator's module now (``suspension.py`` calls it when it is
+    imported). A host may delete the folder it unpacked an FMU into while another instance of the
+    same FMU, which shares these modules, runs on (FMPy's ``simulate_fmu`` does): a module first
+    imported after that is not found."""
+    for c in (*ROAD_ESTIMATORS.values(), *MASS_ESTIMATORS.values()):
+        if c.factory is not None:
+            importlib.import_module(f".{c.factory.split(':')[0]}", __package__)
+
+
 def state_list(x: Sequence[float]) -> list[float]:
     """A state as the 6 plain floats of ``STATE`` (a longer state keeps its first six)."""
     return [float(v) for v in list(x)[:len(STATE)]]

@@ -62,7 +62,7 @@ from ..plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_DAMPER
 from ..plant.vehicle import Vehicle, VEHICLE_RANGES, check_range
 
 from .imm_filter import imm_problems
-from .interface import RoadFilter, code_problems, composed_factory, state_list
+from .interface import RoadFilter, code_problems, composed_factory, preload, state_list
 from .kalman import LinearKF, MMEKF, error_buildup
 from .mass import MassEstimator
 from .model import (IVR, IVS, IVU, IZR, IZS, IZU, N_STATES, N_STATES_AVG, DiscreteModel,
@@ -200,7 +200,7 @@ class EstimatorConfig:
         msgs += self.tuning.problems()
         msgs += vb_problems(self)
         if not any(m and m.startswith(("road_estimator", "mass_estimator")) for m in msgs):
-            from .airspring_observers import config_problems  # the nonlinear model's parameters
+            from .airspring_observers import config_problems  # the nonlinear model's parameters (preloaded)
             msgs += config_problems(self)
         msgs += imm_problems(self)
         return [m for m in msgs if m]
@@ -878,3 +878,6 @@ class SuspensionEstimator:
         out["status"] = status
         out["iri_est"] = self.iri.update(self.distance, x[IZR])
         return out
+
+
+preload()  # every estimator's module, while the folder this package was loaded from exists

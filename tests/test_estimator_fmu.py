@@ -97,6 +97,11 @@ def test_non_finite_measurement_is_rejected_and_the_filter_predicts_through(dist
     ({"defl_noise_std": -1e-4}, "defl_noise_std"),
 ])
 def test_bad_parameter_is_refused_naming_it_and_its_range(dist, params, name):
+    assert_refused(dist, params, name)
+
+
+def assert_refused(dist, params: dict, name: str) -> None:
+    """The FMU logs an error naming ``name`` and its range, and every step is then discarded."""
     e = Driven(dist / "SuspensionEstimator.fmu", params)
     try:
         assert any(s == 3 and name in m and "range" in m for s, m in e.messages), e.messages

@@ -9,6 +9,7 @@ import re
 import shutil
 import subprocess
 import sys
+import textwrap
 import zipfile
 from pathlib import Path
 
@@ -148,3 +149,30 @@ def test_the_fmu_scripts_get_the_private_name_and_nothing_else(tmp_path):
         script.write_text(text)
         with pytest.raises(ValueError, match="must import the project only as"):
             build_script.stage(script, packages, "_p_2", "1", tmp_path / "bad")
+
+
+def test_a_code_first_used_after_the_first_instances_folder_is_gone(dist):
+    """A host may delete the folder it unpacked an FMU into (FMPy's simulate_fmu does) while
+    another instance of the same FMU, sharing its modules, goes on or starts: every estimator
+    code must still load, also when the first instance never built one (its parameters were
+    refused). In a fresh process, so that the first folder is really the first."""
+    script = textwrap.dedent(f"""
+        import shutil, sys
+        sys.path.insert(0, {str(Path(__file__).parent)!r})
+        from fmu_driver import Driven
+        fmu = {str(dist / "SuspensionEstimator.fmu")!r}
+        first = Driven(fmu, {{"forgetting_factor": 0.5}})  # refused: no estimator is ever built
+        first.close()
+        shutil.rmtree(first.dir, ignore_errors=True)  # (close deletes it already)
+        for params in ({{"road_estimator": 3, "mass_estimator": 0}}, {{"road_estimator": 4}},
+                       {{"road_estimator": 0, "mass_estimator": 4}}, {{"road_estimator": 5, "mass_estimator": 3}}):
+            e = Driven(fmu, params)
+            e.step(1e-3, acc_sprung=0.01, acc_unsprung=0.1, susp_deflection=1e-4, vehicle_speed=10.0)
+            assert not any(s >= 3 for s, _ in e.messages), (params, e.messages)
+            e.close()
+        print("ok", flush=True)
+        import os
+        os._exit(0)  # no exit handlers: PythonFMU issue 229 (docs/native-hosts.md)
+        """)
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
+    assert out.stdout.strip().endswith("ok"), out.stdout + out.stderr
