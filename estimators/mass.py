@@ -244,6 +244,7 @@ class MassEstimator:
         self._g = self._g_h = 0.0
 
     def _restart_slow(self) -> None:
+        self._slow_key = self._slow_val = None  # the sample of the cached solution, and it
         self._s1 = self._spp = self._spy = self._syy = 0.0
         n = 2 + len(TERMS)  # the same sums for theta = [m_s, c, *TERMS] (estimate_damping)
         self._S2pp = np.zeros((n, n))
@@ -257,14 +258,26 @@ class MassEstimator:
                 return None
             return (self._spy / self._spp, 1.0 / self._spp,
                     max(self._syy - self._spy ** 2 / self._spp, 0.0))
-        theta = self._slow_theta()
-        if theta is None:
+        sol = self._slow_theta_info()
+        if sol is None:
             return None
-        inv_info = float(np.linalg.inv(self._S2pp)[0, 0])
+        theta, inv_info = sol
         return float(theta[0]), inv_info, max(self._syy - float(theta @ self._S2py), 0.0)
 
     def _slow_theta(self) -> np.ndarray | None:
-        """[m_s kg, c N.s/m, c_a N.s/m] of the since-change least squares, None while singular."""
+        """[m_s kg, c N.s/m, *TERMS] of the since-change least squares, None while singular."""
+        sol = self._slow_theta_info()
+        return None if sol is None else sol[0]
+
+    def _slow_theta_info(self) -> tuple[np.ndarray, float] | None:
+        """(theta, 1 / information of the mass) of the since-change least squares with the
+        damping, None while singular; solved once per sample (the road filter's mass feedback
+        asks for the mass and its standard error every step)."""
+        if self._slow_key != self.samples:
+            self._slow_key, self._slow_val = self.samples, self._solve_slow()
+        return self._slow_val
+
+    def _solve_slow(self) -> tuple[np.ndarray, float] | None:
         A = self._S2pp
         diag = np.diag(A)
         if not np.all(diag > 0.0):
@@ -273,7 +286,10 @@ class MassEstimator:
         Ad = A / np.sqrt(np.outer(diag, diag))
         if not np.linalg.det(Ad) > 1e-9:
             return None
-        return np.linalg.solve(A, self._S2py)
+        rhs = np.zeros((len(diag), 2))
+        rhs[:, 0], rhs[0, 1] = self._S2py, 1.0
+        sol = np.linalg.solve(A, rhs)  # theta, and the first column of A^-1
+        return sol[:, 0], float(sol[0, 1])
 
     @property
     def mass_slow(self) -> float:
