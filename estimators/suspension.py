@@ -61,6 +61,7 @@ from ..plant.step_size import same_step
 from ..plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_DAMPER
 from ..plant.vehicle import Vehicle, VEHICLE_RANGES, check_range
 
+from .airspring_observers import config_problems
 from .imm_filter import imm_problems
 from .interface import RoadFilter, code_problems, composed_factory, preload, state_list
 from .kalman import LinearKF, MMEKF, error_buildup
@@ -191,17 +192,18 @@ class EstimatorConfig:
                 msgs.append(f"{name} = {val!r} must be an integer" + ("" if hi is None else f" in [0, {hi}]"))
             elif hi is not None:
                 msgs.append(check_range(name, val, 0, hi))
-        if not any(m and m.startswith(("road_estimator", "mass_estimator")) for m in msgs):
-            msgs += code_problems(int(self.road_estimator), int(self.mass_estimator))
+        # the codes and their combination, once each is an integer in range (None: not checked)
+        codes = (None if any(m and m.startswith(("road_estimator", "mass_estimator")) for m in msgs)
+                 else code_problems(int(self.road_estimator), int(self.mass_estimator)))
+        msgs += codes or []
         msgs.append(check_range("forgetting_factor", float(self.forgetting_factor), 0.9, 1.0,
                                 low_inclusive=False))
         for name, (lo, hi) in NOISE_STD_RANGES.items():
             msgs.append(check_range(name, float(getattr(self, name)), lo, hi))
         msgs += self.tuning.problems()
         msgs += vb_problems(self)
-        if not any(m and m.startswith(("road_estimator", "mass_estimator")) for m in msgs):
-            from .airspring_observers import config_problems  # the nonlinear model's parameters (preloaded)
-            msgs += config_problems(self)
+        if codes == []:
+            msgs += config_problems(self)  # the nonlinear model's parameters
         msgs += imm_problems(self)
         return [m for m in msgs if m]
 
@@ -720,10 +722,7 @@ class SuspensionEstimator:
                 self.m_model = cfg.m_s_nominal  # see _blend_step
                 self._ensure_model(speed, h)
             if cfg.mass_feedback and me.samples * h >= cfg.tuning.mass_warmup and not self._nonlinear:
-                m = me.mass_slow
-                sd = me.mass_slow_std(h)
-                thr = max(cfg.tuning.mass_rebuild_tol * self.m_model, cfg.tuning.mass_rebuild_sigma * sd)
-                agree = abs(m - self.m_model) <= thr
+                m, sd, agree = self._mass_agrees(me, h)
                 # the model mass is confirmed by enough data: closes the re-filter episode
                 # (road_estimator 2: and the damping estimated, whose first value also re-filters)
                 agree_all = agree and math.isfinite(sd) and (self.anchor is None or me.damping_identified)
@@ -817,6 +816,13 @@ class SuspensionEstimator:
         out["iri_est"] = self.iri.update(self.distance, out["road_height_est"])
         return out
 
+    def _mass_agrees(self, me: MassEstimator, h: float) -> tuple[float, float, bool]:
+        """(since-change mass kg, its standard error kg, whether it agrees with the model mass):
+        agreement within max(mass_rebuild_tol, mass_rebuild_sigma standard errors)."""
+        t = self.cfg.tuning
+        m, sd = me.mass_slow, me.mass_slow_std(h)
+        return m, sd, abs(m - self.m_model) <= max(t.mass_rebuild_tol * self.m_model, t.mass_rebuild_sigma * sd)
+
     def _step_composed(self, acc_sprung: float, acc_unsprung: float, deflection: float, speed: float,
                        h: float) -> dict[str, float]:
         """``step`` for an estimator of the registry (interface.RoadFilter): the sample checks,
@@ -850,9 +856,8 @@ class SuspensionEstimator:
             me.update(vals[0] if live[0] else 0.0, vals[2] if live[2] else x[IZS] - x[IZU], h,
                       use=ok and status != STATUS_REINIT)
             if cfg.mass_feedback and me.samples * h >= cfg.tuning.mass_warmup:
-                m, sd = me.mass_slow, me.mass_slow_std(h)
-                if (abs(m - self.m_model) > max(cfg.tuning.mass_rebuild_tol * self.m_model, cfg.tuning.mass_rebuild_sigma * sd)
-                        and self.time - self._last_rebuild >= cfg.tuning.mass_rebuild_interval):
+                m, _, agree = self._mass_agrees(me, h)
+                if not agree and self.time - self._last_rebuild >= cfg.tuning.mass_rebuild_interval:
                     self.m_model = m
                     self._last_rebuild = self.time
                     self.mass_rebuilds += 1
