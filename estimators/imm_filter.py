@@ -30,7 +30,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..plant import iso8608
-from ..plant.vehicle import VEHICLE_RANGES
+from ..plant.vehicle import VEHICLE_RANGES, check_range
 from .imm import MassIMM, MovingMassIMM
 from .interface import RoadFilter
 from .mass import MassEstimator
@@ -44,25 +44,18 @@ MOVING_MODELS = 5  # models of the moving bank (MovingMassIMM's default)
 
 def imm_problems(cfg) -> list[str]:
     """Messages for IMM parameters out of range or not fitting together (empty when valid)."""
-    msgs = []
-    lo, hi = VEHICLE_RANGES["m_s"][:2]
-    for name in ("imm_mass_min", "imm_mass_max"):
-        v = float(getattr(cfg, name))
-        if not lo <= v <= hi:
-            msgs.append(f"{name} = {v!r} is outside the allowed range [{lo:g}, {hi:g}]")
-    if not msgs and not float(cfg.imm_mass_min) < float(cfg.imm_mass_max):
+    t = cfg.tuning
+    msgs = [check_range(name, float(getattr(cfg, name)), *VEHICLE_RANGES["m_s"])
+            for name in ("imm_mass_min", "imm_mass_max")]
+    if not any(msgs) and not float(cfg.imm_mass_min) < float(cfg.imm_mass_max):
         msgs.append(f"imm_mass_min = {cfg.imm_mass_min!r} must be below imm_mass_max = {cfg.imm_mass_max!r}")
     n = cfg.imm_models
     if isinstance(n, bool) or float(n) != int(n) or not 2 <= int(n) <= 25:
         msgs.append(f"imm_models = {n!r} is outside the allowed range [2, 25] (an integer)")
-    st = float(cfg.imm_stay)
-    if not 0.0 < st < 1.0:
-        msgs.append(f"imm_stay = {st!r} is outside the allowed range (0, 1)")
-    if not 0.0 <= float(cfg.tuning.imm_window) <= 10.0:
-        msgs.append(f"imm_window = {cfg.tuning.imm_window!r} is outside the allowed range [0, 10]")
-    if not 0.1 <= float(cfg.tuning.imm_road_n_hi) <= 1e3:
-        msgs.append(f"imm_road_n_hi = {cfg.tuning.imm_road_n_hi!r} is outside the allowed range [0.1, 1000]")
-    return msgs
+    msgs += [check_range("imm_stay", float(cfg.imm_stay), 0.0, 1.0, low_inclusive=False, high_inclusive=False),
+             check_range("imm_window", float(t.imm_window), 0.0, 10.0),
+             check_range("imm_road_n_hi", float(t.imm_road_n_hi), 0.1, 1e3)]
+    return [m for m in msgs if m]
 
 
 class IMMRoad(RoadFilter):

@@ -55,7 +55,7 @@ import numpy as np
 from scipy.signal import butter
 
 from ..plant import iso8608
-from ..plant.iri import IRIMeter
+from ..plant.iri import SEGMENT_RANGE, IRIMeter
 from ..plant.quarter_car import NOISE_STD_RANGES
 from ..plant.step_size import same_step
 from ..plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_DAMPER
@@ -200,6 +200,7 @@ class EstimatorConfig:
                                 low_inclusive=False))
         for name, (lo, hi) in NOISE_STD_RANGES.items():
             msgs.append(check_range(name, float(getattr(self, name)), lo, hi))
+        msgs.append(check_range("iri_segment", float(self.iri_segment), *SEGMENT_RANGE))
         msgs += self.tuning.problems()
         msgs += vb_problems(self)
         if codes == []:

@@ -35,6 +35,7 @@ SPEED = 80.0 / 3.6  # m/s
 BASE = 0.25  # m, moving-average base length
 INIT_LENGTH = 11.0  # m, length whose slope initialises the car
 DX = 0.05  # m, default grid of the streaming meter
+SEGMENT_RANGE = (1.0, 1e5)  # m, the iri_segment a user may ask for (at least 10 DX)
 
 
 def golden_car() -> tuple[np.ndarray, np.ndarray]:

@@ -130,3 +130,25 @@ def test_estimator_config_is_the_contract_parameters():
     assert {f.name for f in fields(cfg)} - {"tuning"} == set(params)
     for name, start in params.items():
         assert getattr(cfg, name) == start, name
+
+
+def test_the_core_refuses_what_the_contract_refuses():
+    """Each ranged parameter of the contract: the core takes both ends of its range (or values
+    just inside an open end) and refuses a value beyond each, naming it; the FMU's check and the
+    core's cannot drift apart."""
+    for v in SUSPENSION_ESTIMATOR:
+        if v.causality != "parameter" or not isinstance(v.allowed, tuple) or v.type not in ("Real", "Integer"):
+            continue
+        lo, hi, lo_in, hi_in = (*v.allowed, True, True)[:4]
+        step = 1 if v.type == "Integer" else 1e-9 * max(abs(lo), abs(hi), 1.0)
+        for value, ok in ((lo if lo_in else lo + step, True), (hi if hi_in else hi - step, True),
+                          (lo - step if lo_in else lo, False), (hi + step if hi_in else hi, False)):
+            if not math.isfinite(value):
+                continue
+            try:
+                SuspensionEstimator(**{v.name: value})
+                msgs = []
+            except ValueError as e:
+                msgs = str(e).split("; ")
+            named = [m for m in msgs if m.startswith(v.name + " ") and ("range" in m or " in [" in m)]
+            assert bool(named) != ok, (v.name, value, named)

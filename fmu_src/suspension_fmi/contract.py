@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass
 
 from ..plant import iso8608
+from ..plant.iri import SEGMENT_RANGE
 from ..plant.quarter_car import NOISE_STD_RANGES, SensorNoise
 from ..plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_BUMP_STOPS, DEFAULT_DAMPER, FORCE_RANGES
 from ..plant.vehicle import DEFAULT_VEHICLE, VEHICLE_RANGES
@@ -61,7 +62,7 @@ _SEED = (0, 2 ** 31 - 1)
 _CLASSES = {c: f"ISO 8608 class {iso8608.class_name(c)}" for c in range(1, 9)}
 _SPEED = (0.0, 100.0)
 _IRI_SEGMENT = Var("iri_segment", "parameter", "Real", "m", 100.0,
-                   "length of the segments the IRI is reported for", (1.0, 1e5))
+                   "length of the segments the IRI is reported for", SEGMENT_RANGE)
 
 
 # The estimator codes: code -> (short name, meaning). estimators/interface.py maps each code to
