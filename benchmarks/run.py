@@ -363,10 +363,8 @@ def bench_fmus(data: dict, steps: int, repeat: int, tmp: Path, dist: Path) -> tu
                   [[a, u, d, SPEED] for a, u, d in meas], {"vehicle_speed": SPEED}))
     for code, label in ((2, "SuspensionEstimator.fmu, IMM (mass_estimator 2)"),
                         (4, "SuspensionEstimator.fmu, moving IMM (mass_estimator 4)")):
-        # a copy under its own name: every Slave extracts into tmp / the FMU's stem
-        copy = tmp / f"SuspensionEstimator_imm{code}.fmu"
-        shutil.copy(dist / "SuspensionEstimator.fmu", copy)
-        s = Slave(copy, tmp, {"road_estimator": 0, "mass_estimator": code})
+        s = Slave(dist / "SuspensionEstimator.fmu", tmp, {"road_estimator": 0, "mass_estimator": code},
+                  tag=f"_imm{code}")
         cases.append((label, s, s.vr("acc_sprung", "acc_unsprung", "susp_deflection", "vehicle_speed"),
                       [[a, u, d, SPEED] for a, u, d in meas], {"vehicle_speed": SPEED}))
     raw = hasattr(cases[0][1].fmu, "_functions")
