@@ -100,6 +100,13 @@ RATE_LP = 120.0
 # the suspension's departures from k_s d + c d' that the [m_s, c] regression also fits (module
 # doc): the damper's asymmetry |d'| and its progression d'|d'|, the spring's curvature d^2
 TERMS = ("|d'|", "d'|d'|", "d^2")
+# The regression needs the body to move: where the filtered body acceleration F[a_s] is little more
+# than filtered sensor noise (a smooth road, standstill) least squares fits noise to noise and the
+# mass falls towards zero (a flat road at 72 km/h: 41 kg, the 0.1 x nominal bound, in 15 s, and the
+# road filter rebuilt ~20 times a second at it). Below this ratio of the mean square of F[a_s] to
+# its noise-only value (``MassEstimator.excitation``) the estimates hold their value.
+EXCITATION_MIN = 4.0
+EXCITATION_TAU = 1.0  # s, low-pass of F[a_s]^2 that the fast RLS's excitation test uses
 
 
 def _terms(v: float, d: float) -> tuple[float, float, float]:
@@ -200,8 +207,12 @@ class MassEstimator:
                  estimate_damping: bool = False, f_hp: float = 0.2, f_lp: float = 8.0,
                  m_bounds: tuple[float, float] | None = None, reset_ratio: float = 0.1,
                  reset_tau: float = 0.03, reset_hold: float = 0.3, slow_tau: float = 30.0,
-                 reset_z: float = 5.0, noise_tau: float = 1.0):
+                 reset_z: float = 5.0, noise_tau: float = 1.0, acc_noise_std: float = 0.0,
+                 defl_noise_std: float = 0.0):
         self.k_s, self.c_s = float(k_s), float(c_s)
+        self.acc_noise_std, self.defl_noise_std = float(acc_noise_std), float(defl_noise_std)
+        self._noise_fa = self._noise_fdd = 0.0  # noise-only variance of F[a_s], F[d'] (set per h)
+        self._faa = 0.0  # F[a_s]^2 low-passed over EXCITATION_TAU
         self.estimate_damping = bool(estimate_damping)
         self.m_nominal = float(m_nominal)
         self.svf = StateVariableFilter(f_hp, f_lp)
@@ -246,6 +257,7 @@ class MassEstimator:
     def _restart_slow(self) -> None:
         self._slow_key = self._slow_val = None  # the sample of the cached solution, and it
         self._s1 = self._spp = self._spy = self._syy = 0.0
+        self._faa = 0.0
         n = 2 + len(TERMS)  # the same sums for theta = [m_s, c, *TERMS] (estimate_damping)
         self._S2pp = np.zeros((n, n))
         self._S2py = np.zeros(n)
@@ -254,15 +266,19 @@ class MassEstimator:
         """(mass kg, 1 / information of the mass (1/(m/s^2)^2 per sample), residual sum of
         squares N^2) of the since-change least squares, or None while it is singular."""
         if not self.estimate_damping:
-            if self._spp <= 0.0:
+            if not self.excited_slow:
                 return None
-            return (self._spy / self._spp, 1.0 / self._spp,
-                    max(self._syy - self._spy ** 2 / self._spp, 0.0))
+            spp = self._spp - self._s1 * self._noise_fa  # errors in the regressor removed
+            if spp <= 0.0:
+                return None
+            m = self._spy / spp  # residual sum of squares of m (not of the ordinary LS)
+            return m, 1.0 / spp, max(self._syy - 2.0 * m * self._spy + m * m * self._spp, 0.0)
         sol = self._slow_theta_info()
         if sol is None:
             return None
         theta, inv_info = sol
-        return float(theta[0]), inv_info, max(self._syy - float(theta @ self._S2py), 0.0)
+        sse = self._syy - 2.0 * float(theta @ self._S2py) + float(theta @ self._S2pp @ theta)
+        return float(theta[0]), inv_info, max(sse, 0.0)
 
     def _slow_theta(self) -> np.ndarray | None:
         """[m_s kg, c N.s/m, *TERMS] of the since-change least squares, None while singular."""
@@ -278,7 +294,14 @@ class MassEstimator:
         return self._slow_val
 
     def _solve_slow(self) -> tuple[np.ndarray, float] | None:
-        A = self._S2pp
+        # the noise in F[a_s] and F[d'] (independent sensors, known std) adds s1 times its
+        # variance to their diagonal of the normal matrix and biases theta towards zero
+        # (errors in variables); it is taken out
+        if not self.excited_slow:
+            return None
+        A = self._S2pp.copy()
+        A[0, 0] -= self._s1 * self._noise_fa
+        A[1, 1] -= self._s1 * self._noise_fdd
         diag = np.diag(A)
         if not np.all(diag > 0.0):
             return None
@@ -290,6 +313,21 @@ class MassEstimator:
         rhs[:, 0], rhs[0, 1] = self._S2py, 1.0
         sol = np.linalg.solve(A, rhs)  # theta, and the first column of A^-1
         return sol[:, 0], float(sol[0, 1])
+
+    @property
+    def excited_slow(self) -> bool:
+        """The since-change data excite the body: their mean square of F[a_s] is at least
+        EXCITATION_MIN times the noise-only value (always True without a noise std)."""
+        if self._noise_fa <= 0.0:
+            return True
+        spp = self._S2pp[0, 0] if self.estimate_damping else self._spp
+        return spp > EXCITATION_MIN * self._s1 * self._noise_fa
+
+    @property
+    def excitation(self) -> float:
+        """Mean square of F[a_s] over the last EXCITATION_TAU s over its noise-only value
+        (dimensionless; inf without a noise std). Below EXCITATION_MIN the fast RLS holds."""
+        return self._faa / self._noise_fa if self._noise_fa > 0.0 else math.inf
 
     @property
     def mass_slow(self) -> float:
@@ -353,6 +391,7 @@ class MassEstimator:
             self._svf_ad, self._svf_bd, self._svf_h = tuple(Ad.tolist()), tuple(Bd.tolist()), h
             Ad, Bd = self.svf_rate.discretise(h)
             self._rate_ad, self._rate_bd = tuple(Ad.tolist()), tuple(Bd.tolist())
+            self._noise_fa, self._noise_fdd = self._noise_variances(h)
         (r0, r1, r2), bd = self._svf_ad, self._svf_bd
         self.xa = _svf_step(r0, r1, r2, bd, self.xa, acc_sprung)
         self.xd = _svf_step(r0, r1, r2, bd, self.xd, deflection)
@@ -370,6 +409,7 @@ class MassEstimator:
             self._guard = max(self._guard - h, 0.0)
             return self.mass
         fa, phi, y = self._regression()
+        self._faa += min(h / EXCITATION_TAU, 1.0) * (fa * fa - self._faa)
         y1 = y if phi is None else self._target(y, phi)  # N, the one-parameter target
         if self.reset_ratio > 0:
             # a-priori innovation (N) of eq. 22; the change estimate and its significance
@@ -393,7 +433,8 @@ class MassEstimator:
         g = self._g
         self._s1 = g * self._s1 + 1.0
         self._syy = g * self._syy + y * y
-        self.rls.update_scalar(fa, y1)
+        if self._faa > EXCITATION_MIN * self._noise_fa:
+            self.rls.update_scalar(fa, y1)
         if self.estimate_damping:
             self._S2pp = g * self._S2pp + np.outer(phi, phi)
             self._S2py = g * self._S2py + phi * y
@@ -412,6 +453,16 @@ class MassEstimator:
             self._spp = g * self._spp + fa * fa
             self._spy = g * self._spy + fa * y
         return self.mass
+
+    def _noise_variances(self, h: float) -> tuple[float, float]:
+        """Stationary variance of F[a_s] ((m/s^2)^2) and of F[d'] ((m/s)^2) when the sensors
+        give nothing but their white noise (std per sample ``acc_noise_std``, ``defl_noise_std``,
+        held over the step as the filter's ZOH assumes)."""
+        from scipy.linalg import solve_discrete_lyapunov
+
+        Ad, Bd = self.svf.discretise(h)
+        P = solve_discrete_lyapunov(Ad, np.outer(Bd, Bd))
+        return self.acc_noise_std ** 2 * float(P[1, 1]), self.defl_noise_std ** 2 * float(P[2, 2])
 
     def _regression(self) -> tuple[float, np.ndarray | None, float]:
         """F[a_s] (m/s^2), phi (3-parameter case, else None) and y (N) of eq. 15 from the

@@ -266,7 +266,8 @@ class SuspensionEstimator:
         lo, hi = VEHICLE_RANGES["m_s"][:2]
         bounds = (max(0.1 * cfg.m_s_nominal, lo), min(10.0 * cfg.m_s_nominal, hi))
         self.mass_est = (MassEstimator(cfg.m_s_nominal, cfg.k_s, cfg.c_s, cfg.forgetting_factor,
-                                       damping, m_bounds=bounds) if cfg.mass_estimator == 1 else None)
+                                       damping, m_bounds=bounds, acc_noise_std=cfg.acc_sprung_noise_std,
+                                       defl_noise_std=cfg.defl_noise_std) if cfg.mass_estimator == 1 else None)
         self.classifier = RoadClassifier(gain=cfg.tuning.class_gain)
         self.iri = IRIMeter(cfg.iri_segment, start=0.0)  # raises a ValueError naming iri_segment
         self.model: DiscreteModel | None = None

@@ -31,6 +31,11 @@ from libcosim_driver import Libcosim
 H = 1e-3  # s
 V = 11.1111  # m/s, vehicle_speed's start value
 REL = 1e-9
+# The joint estimator in a closed loop: its mass feedback rebuilds the road filter at discrete
+# instants (12 times in the first 0.6 s from rest), which amplifies input differences of 1e-13
+# (relative) to ~5e-11 m of road in 0.6 s, ~3e-9 of the estimate's scale (measured on the cores);
+# a one-step coupling error would differ by ~1e-2.
+REL_CLOSED_LOOP_ESTIMATOR = 1e-8
 MEASURED = ("acc_sprung", "acc_unsprung", "susp_deflection")
 
 
@@ -39,10 +44,10 @@ def _outputs(fmu) -> list[str]:
             if v.causality == "output"]
 
 
-def _assert_close(got: np.ndarray, want: np.ndarray, name: str) -> None:
+def _assert_close(got: np.ndarray, want: np.ndarray, name: str, rel: float = REL) -> None:
     scale = max(np.max(np.abs(want)), 1e-300)
     diff = np.max(np.abs(got - want))
-    assert diff <= REL * scale, f"{name}: max |libcosim - reference| = {diff:.3g} (scale {scale:.3g})"
+    assert diff <= rel * scale, f"{name}: max |libcosim - reference| = {diff:.3g} (scale {scale:.3g})"
 
 
 def _live_inputs(dist, n: int) -> dict[str, dict[str, np.ndarray]]:
@@ -138,7 +143,8 @@ def test_shipped_ssp_in_libcosim_matches_the_harness_up_to_its_lag(dist, name):
         d.close()
     est = np.array(est)
     for j, o in enumerate(est_out):
-        _assert_close(got[f"SuspensionEstimator.{o}"], est[:, j], f"SuspensionEstimator.{o}")
+        _assert_close(got[f"SuspensionEstimator.{o}"], est[:, j], f"SuspensionEstimator.{o}",
+                      REL_CLOSED_LOOP_ESTIMATOR)
     assert np.ptp(got["SuspensionEstimator.road_height_est"]) > 1e-3
     assert np.ptp(got["SuspensionEstimator.sprung_mass_est"]) > 1.0
 
