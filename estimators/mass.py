@@ -107,6 +107,10 @@ TERMS = ("|d'|", "d'|d'|", "d^2")
 # its noise-only value (``MassEstimator.excitation``) the estimates hold their value.
 EXCITATION_MIN = 4.0
 EXCITATION_TAU = 1.0  # s, low-pass of F[a_s]^2 that the fast RLS's excitation test uses
+# s between two solutions of the since-change least squares with the damping (5 x 5, ~15 us, a
+# third of the default estimator's step when solved every sample); its data change little in a
+# few ms, and the road filter's mass feedback acts at most every 20 ms (mass_rebuild_interval)
+SLOW_SOLVE_INTERVAL = 0.005
 
 
 def _terms(v: float, d: float) -> tuple[float, float, float]:
@@ -213,6 +217,7 @@ class MassEstimator:
         self.acc_noise_std, self.defl_noise_std = float(acc_noise_std), float(defl_noise_std)
         self._noise_fa = self._noise_fdd = 0.0  # noise-only variance of F[a_s], F[d'] (set per h)
         self._faa = 0.0  # F[a_s]^2 low-passed over EXCITATION_TAU
+        self._solve_every = 1  # samples between least-squares solutions (SLOW_SOLVE_INTERVAL)
         self.estimate_damping = bool(estimate_damping)
         self.m_nominal = float(m_nominal)
         self.svf = StateVariableFilter(f_hp, f_lp)
@@ -276,24 +281,23 @@ class MassEstimator:
         sol = self._slow_theta_info()
         if sol is None:
             return None
-        theta, inv_info = sol
-        sse = self._syy - 2.0 * float(theta @ self._S2py) + float(theta @ self._S2pp @ theta)
-        return float(theta[0]), inv_info, max(sse, 0.0)
+        theta, inv_info, sse = sol
+        return float(theta[0]), inv_info, sse
 
     def _slow_theta(self) -> np.ndarray | None:
         """[m_s kg, c N.s/m, *TERMS] of the since-change least squares, None while singular."""
         sol = self._slow_theta_info()
         return None if sol is None else sol[0]
 
-    def _slow_theta_info(self) -> tuple[np.ndarray, float] | None:
-        """(theta, 1 / information of the mass) of the since-change least squares with the
-        damping, None while singular; solved once per sample (the road filter's mass feedback
-        asks for the mass and its standard error every step)."""
-        if self._slow_key != self.samples:
+    def _slow_theta_info(self) -> tuple[np.ndarray, float, float] | None:
+        """(theta, 1 / information of the mass, residual sum of squares N^2) of the
+        since-change least squares with the damping, None while singular; solved again once SLOW_SOLVE_INTERVAL s of samples have
+        come in (the road filter's mass feedback asks for it every step)."""
+        if self._slow_key is None or self.samples - self._slow_key >= self._solve_every:
             self._slow_key, self._slow_val = self.samples, self._solve_slow()
         return self._slow_val
 
-    def _solve_slow(self) -> tuple[np.ndarray, float] | None:
+    def _solve_slow(self) -> tuple[np.ndarray, float, float] | None:
         # the noise in F[a_s] and F[d'] (independent sensors, known std) adds s1 times its
         # variance to their diagonal of the normal matrix and biases theta towards zero
         # (errors in variables); it is taken out
@@ -312,7 +316,10 @@ class MassEstimator:
         rhs = np.zeros((len(diag), 2))
         rhs[:, 0], rhs[0, 1] = self._S2py, 1.0
         sol = np.linalg.solve(A, rhs)  # theta, and the first column of A^-1
-        return sol[:, 0], float(sol[0, 1])
+        theta = sol[:, 0]
+        # residual of this theta (not of the ordinary least squares): with the uncorrected sums
+        sse = self._syy - 2.0 * float(theta @ self._S2py) + float(theta @ self._S2pp @ theta)
+        return theta, float(sol[0, 1]), max(sse, 0.0)
 
     @property
     def excited_slow(self) -> bool:
@@ -392,6 +399,7 @@ class MassEstimator:
             Ad, Bd = self.svf_rate.discretise(h)
             self._rate_ad, self._rate_bd = tuple(Ad.tolist()), tuple(Bd.tolist())
             self._noise_fa, self._noise_fdd = self._noise_variances(h)
+            self._solve_every = max(1, int(round(SLOW_SOLVE_INTERVAL / h)))
         (r0, r1, r2), bd = self._svf_ad, self._svf_bd
         self.xa = _svf_step(r0, r1, r2, bd, self.xa, acc_sprung)
         self.xd = _svf_step(r0, r1, r2, bd, self.xd, deflection)
