@@ -291,8 +291,8 @@ class MassEstimator:
 
     def _slow_theta_info(self) -> tuple[np.ndarray, float, float] | None:
         """(theta, 1 / information of the mass, residual sum of squares N^2) of the
-        since-change least squares with the damping, None while singular; solved again once SLOW_SOLVE_INTERVAL s of samples have
-        come in (the road filter's mass feedback asks for it every step)."""
+        since-change least squares with the damping, None while singular; solved again once
+        SLOW_SOLVE_INTERVAL s of samples have come in (the mass feedback asks every step)."""
         if self._slow_key is None or self.samples - self._slow_key >= self._solve_every:
             self._slow_key, self._slow_val = self.samples, self._solve_slow()
         return self._slow_val
