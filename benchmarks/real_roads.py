@@ -8,7 +8,8 @@ contract's default vehicle at 410 kg, its sensor noise with ``noise_seed``) -> t
 SuspensionEstimator, 1 ms steps, the whole road. Per road and speed, means over the noise seeds
 (the road is the same): HP road error std % (harness.metrics), the raw error rms against
 ``reference_road`` (what road_height_est estimates) and the rms road_height_std after the 10 s
-warm-up, the 2-sigma coverage of that error, the largest |error| within 5 m of a bump or
+warm-up, their ratio (pooled over the seeds: sqrt(mean rms^2 / mean std^2)), the 2-sigma
+coverage of that error (mean over the seeds, and its range), the largest |error| within 5 m of a bump or
 pothole, the IRI error per completed 100 m segment after the first (mean and worst %), and the
 sprung-mass error and mass_std at the end.
 """
@@ -87,16 +88,19 @@ def main(argv: list[str] | None = None) -> int:
     with ProcessPoolExecutor(a.workers) as pool:
         res = list(pool.map(run, *zip(*jobs)))
     print(f"through the FMUs, noise seeds {a.seeds} (means; IRI worst over seeds and segments)")
-    print("| road | km/h | HP % | raw rms mm | std rms mm | 2σ coverage % | max err near event mm | "
-          "IRI err mean % | IRI err worst % | mass err % | mass_std % |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print("| road | km/h | HP % | raw rms mm | std rms mm | rms err / rms std | 2σ coverage % | coverage range % | "
+          "max err near event mm | IRI err mean % | IRI err worst % | mass err % | mass_std % |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in roads:
         for k in speeds:
             x = [y for y in res if y["road"] == r and y["kmh"] == k]
             m = {key: float(np.mean([y[key] for y in x])) for key in x[0] if key not in ("road", "kmh", "seed")}
             worst = max((y["iri_worst"] for y in x), key=abs)
             ev = "" if np.isnan(m["event"]) else f"{m['event']:.1f}"
-            print(f"| {r} | {k:g} | {m['hp']:.2f} | {m['rms']:.2f} | {m['std']:.2f} | {100 * m['cov']:.1f} | {ev} | "
+            ratio = np.sqrt(np.mean([y["rms"] ** 2 for y in x]) / np.mean([y["std"] ** 2 for y in x]))
+            cov = [100 * y["cov"] for y in x]
+            print(f"| {r} | {k:g} | {m['hp']:.2f} | {m['rms']:.2f} | {m['std']:.2f} | {ratio:.2f} | "
+                  f"{100 * m['cov']:.1f} | {min(cov):.0f}-{max(cov):.0f} | {ev} | "
                   f"{m['iri_mean']:+.2f} | {worst:+.2f} | {m['mass']:+.2f} | {m['mass_std']:.2f} |", flush=True)
     return 0
 
