@@ -122,7 +122,10 @@ def test_frozen_gain_equals_full_recursion(kw):
     # the frozen gain is the fixed point to freeze_tol (1e-8 relative): states agree to about
     # that relative size, and to 10 nm / 10 nm/s where they are small
     np.testing.assert_allclose(a[:, :6], b[:, :6], rtol=1e-8, atol=1e-8)
-    np.testing.assert_allclose(a[:, 6], b[:, 6], rtol=1e-6)  # road_height_std
+    # road_height_std: an anchor restart (10-15 after the frozen deflection) copies the force-error
+    # filter's covariance into the anchor, the frozen fixed point in one run and the full
+    # recursion in the other; measured 0.7-1.2e-6 relative after them
+    np.testing.assert_allclose(a[:, 6], b[:, 6], rtol=3e-6)
     np.testing.assert_allclose(a[:, 7], b[:, 7], rtol=1e-9)  # sprung mass
     if kw.get("m_s_nominal"):
         assert fast.refilters >= 1 and fast.refilters == full.refilters
