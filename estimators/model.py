@@ -99,14 +99,22 @@ class RoadModel:
 @dataclass(frozen=True)
 class ModelNoise:
     """White acceleration noise intensities on the body and wheel velocity states, m^2/s^3,
-    and the suspension-force error state (``force_error_matrices``): intensity ``q_f`` per unit
-    speed (N^2/m: the state is driven by q_f * speed N^2/s; 0 = no such state) and its
-    correlation time ``tau_f`` (s)."""
+    and the suspension-force error states (``force_error_matrices``): the fast error e with
+    intensity ``q_f`` per unit speed (N^2/m: the state is driven by q_f * speed N^2/s; 0 = no
+    such state) and correlation time ``tau_f`` (s), and the slow bias b with ``q_b`` (N^2/m; 0 =
+    none, only with q_f > 0) and ``tau_b`` (s)."""
 
     q_s: float = 1e-8
     q_u: float = 1e-8
     q_f: float = 0.0
     tau_f: float = 0.1
+    q_b: float = 0.0
+    tau_b: float = 10.0
+
+    @property
+    def force_states(self) -> int:
+        """Number of force-error states appended to the model (0, 1 or 2)."""
+        return 0 if self.q_f <= 0 else (2 if self.q_b > 0 else 1)
 
 
 def road_coefficients(speed: float, road: RoadModel = RoadModel()) -> tuple[float, float]:
@@ -354,28 +362,35 @@ def discretise_averaged(A: np.ndarray, Qc: np.ndarray, h: float, ref_row: np.nda
 
 def force_error_matrices(A: np.ndarray, Qc: np.ndarray, H: np.ndarray, v: Vehicle, speed: float,
                          noise: ModelNoise) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(A, Qc, H) with the suspension-force error state e (N) appended as the LAST state.
+    """(A, Qc, H) with the suspension-force error states appended as the LAST states.
 
-    The suspension force is F_s = k_s d + c_s d' + e: the model's linear spring and damper plus
-    a Gauss-Markov error e' = -e / tau_f + w, E[w w'] = q_f |speed| delta (N^2/s), acting as
-    -e / m_s on the body and +e / m_u on the wheel. Whatever e is, m_s a_s + m_u a_u =
+    The suspension force is F_s = k_s d + c_s d' + e (+ b): the model's linear spring and damper
+    plus a Gauss-Markov error e' = -e / tau_f + w, E[w w'] = q_f |speed| delta (N^2/s), acting
+    as -e / m_s on the body and +e / m_u on the wheel. Whatever e is, m_s a_s + m_u a_u =
     k_t (z_r - z_u): the road follows from the whole-corner force balance, which holds for any
     spring and damper law, while the model's spring and damper still shape the prior. q_f = 0
     is the exact linear model; q_f -> inf makes a_s a pure input (the suspension-model-free
     filter). The intensity grows with speed because the suspension motion, and with it the
     force error of a wrong c_s or k_s, grows with the road-velocity intensity (white road
-    velocity, PSD proportional to speed). H gains the column of e in the accelerations
-    (end-of-step rows); in the averaged rows (velocity differences) e acts through the dynamics.
+    velocity, PSD proportional to speed). With q_b > 0 a second, slow state b (tau_b, q_b
+    |speed|) acts the same way: a mean force the linear spring does not explain (an asymmetric
+    damper's jacking shifts the mean deflection by millimetres, which e, correlated over 0.1 s,
+    cannot hold, and which the filter would otherwise read as a road offset). H gains the
+    columns of the force states in the accelerations (end-of-step rows, set by the caller); in
+    the averaged rows (velocity differences) they act through the dynamics.
     """
-    n = A.shape[0]
-    A2 = np.zeros((n + 1, n + 1))
+    n, nf = A.shape[0], noise.force_states
+    taus = (noise.tau_f, noise.tau_b)[:nf]
+    qs = (noise.q_f, noise.q_b)[:nf]
+    A2 = np.zeros((n + nf, n + nf))
     A2[:n, :n] = A
-    A2[IVS, n], A2[IVU, n] = -1.0 / v.m_s, 1.0 / v.m_u
-    A2[n, n] = -1.0 / noise.tau_f
-    Q2 = np.zeros((n + 1, n + 1))
+    Q2 = np.zeros((n + nf, n + nf))
     Q2[:n, :n] = Qc
-    Q2[n, n] = noise.q_f * max(abs(float(speed)), 0.1)
-    H2 = np.zeros((H.shape[0], n + 1))
+    for i in range(nf):
+        A2[IVS, n + i], A2[IVU, n + i] = -1.0 / v.m_s, 1.0 / v.m_u
+        A2[n + i, n + i] = -1.0 / taus[i]
+        Q2[n + i, n + i] = qs[i] * max(abs(float(speed)), 0.1)
+    H2 = np.zeros((H.shape[0], n + nf))
     H2[:, :n] = H
     return A2, Q2, H2
 
@@ -408,15 +423,17 @@ class DiscreteModel:
         Qc = noise_intensity(gd_n0, speed, road, noise)
         if acc_sampling == 1:
             H = averaged_output_matrix(h, deflection)
-            if noise.q_f > 0:  # e acts through the dynamics only: its H column stays zero
+            nf = noise.force_states
+            if nf:  # the force states act through the dynamics only: their H columns stay zero
                 A, Qc, _ = force_error_matrices(A, Qc, A[:0], vehicle, speed, noise)
-                H = np.hstack([H, np.zeros((H.shape[0], 1))])
+                H = np.hstack([H, np.zeros((H.shape[0], nf))])
             Phi, Q = discretise_averaged(A, Qc, h, reference_acceleration_row(road), road_hold)
         else:
             H = output_matrix(vehicle, deflection)
-            if noise.q_f > 0:
+            nf = noise.force_states
+            if nf:
                 A, Qc, H = force_error_matrices(A, Qc, H, vehicle, speed, noise)
-                H[0, -1], H[1, -1] = -1.0 / vehicle.m_s, 1.0 / vehicle.m_u
+                H[0, -nf:], H[1, -nf:] = -1.0 / vehicle.m_s, 1.0 / vehicle.m_u
             Phi, Q = discretise_held_road(A, Qc, h) if road_hold else discretise(A, Qc, h)
         return cls(vehicle, float(speed), float(gd_n0), float(h), A, Phi, Q, H, int(acc_sampling))
 

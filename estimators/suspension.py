@@ -4,8 +4,9 @@ online ISO class.
 Road estimators (contract ``road_estimator``): 0 the KF of the exact linear model, 1 MME&KF,
 2 (default) the robust combination of docs/robustness.md:
 
-* the force-error filter (``self.kf``): the KF with the suspension-force error state of
-  ``model.force_error_matrices``; its road follows from the whole-corner force balance
+* the force-error filter (``self.kf``): the KF with the suspension-force error states of
+  ``model.force_error_matrices`` (a fast error and a slow bias, which holds the mean force of
+  an asymmetric damper's jacking that the linear spring would read as a road offset); its road follows from the whole-corner force balance
   m_s a_s + m_u a_u = k_t (z_r - z_u), which holds for any spring and damper law, so a wrong
   c_s or k_s costs little in band. It gates, rejects and re-filters as the KF does;
 * the anchor (``self.anchor``): the exact-model KF built at the identified mass and damping
@@ -254,9 +255,12 @@ class SuspensionEstimator:
         self.acc_sampling = int(cfg.acc_sampling)
         self.n_states = N_STATES_AVG if self.acc_sampling == 1 else N_STATES
         self._noise = cfg.tuning.model_noise
-        if cfg.road_estimator == 2:  # the suspension-force error state, appended last
-            self.n_states += 1
-            self._noise = replace(cfg.tuning.model_noise, q_f=float(cfg.tuning.force_error_q))
+        self._force_states = 0
+        if cfg.road_estimator == 2:  # the suspension-force error states, appended last
+            self._noise = replace(cfg.tuning.model_noise, q_f=float(cfg.tuning.force_error_q),
+                                  q_b=float(cfg.tuning.force_bias_q), tau_b=float(cfg.tuning.force_bias_tau))
+            self._force_states = self._noise.force_states
+            self.n_states += self._force_states
         damping = cfg.road_estimator == 2 if cfg.tuning.estimate_damping is None else bool(cfg.tuning.estimate_damping)
         self._road_hold = bool(cfg.tuning.road_hold == 1 or (cfg.tuning.road_hold == -1 and self.acc_sampling == 1))
         if cfg.road_estimator == 1:
@@ -270,7 +274,7 @@ class SuspensionEstimator:
         self.anchor: LinearKF | None = None
         self.anchor_model: DiscreteModel | None = None
         if cfg.road_estimator == 2:
-            self.anchor = LinearKF(self.n_states - 1, dim_z, freeze_tol=cfg.tuning.freeze_tol, fast=cfg.tuning.fast_gain)
+            self.anchor = LinearKF(self.n_states - self._force_states, dim_z, freeze_tol=cfg.tuning.freeze_tol, fast=cfg.tuning.fast_gain)
             self.anchor.R = self.R
         self._blend = Blend(cfg.tuning.blend_hz)
         self._hold_left = 0.0  # s of the anchor hold left (see _after_update)
@@ -334,10 +338,11 @@ class SuspensionEstimator:
         self._hold_left = 0.0
         if self.anchor is not None:
             a = self.anchor
-            a.x, a.P_post = np.zeros(n - 1), None
+            na = a.dim_x
+            a.x, a.P_post = np.zeros(na), None
             a.unfreeze()
             if self.anchor_model is None or not a.stationary():
-                a.P = np.diag(([1e-4, 1e-4, 1e-4, 1e-4, 1e-2, 1e-1] + [1e-4] * n)[:n - 1]) ** 2
+                a.P = np.diag(([1e-4, 1e-4, 1e-4, 1e-4, 1e-2, 1e-1] + [1e-4] * n)[:na]) ** 2
         self._t_reset = self.time  # the estimate restarts from zero: see road_height_std
         self._from_rest = bool(from_rest)
         self._buildup = None

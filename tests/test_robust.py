@@ -182,3 +182,38 @@ def test_the_nonlinear_case_of_the_study_through_the_fmus(dist):
     # force-error state takes it up in band: docs/robustness.md)
     assert s["KF_nominal"]["err_std_hp_pct"] > 3 * s["EKF"]["err_std_hp_pct"], s
     assert abs(s["dual"]["mass_err_end_pct"]) < 8.0, s["dual"]
+
+
+@pytest.mark.parametrize("q_b", [0.0, 1000.0])
+def test_the_slow_force_bias_is_what_a_mean_deflection_says(q_b):
+    """A mean deflection with no acceleration (an asymmetric damper's jacking) is a mean
+    suspension force the linear spring does not explain. With the slow bias state the force
+    states take it up, k_s |d0| to 1 %, and the road stays within 2 |d0| of its start after
+    60 s; with the fast error alone (correlation 0.1 s) the force cannot hold, the filter reads
+    the deflection as motion and the road drifts by tens of |d0|."""
+    from dataclasses import replace
+
+    from suspension_estimation.estimators.kalman import LinearKF
+    from suspension_estimation.estimators.model import IZR, IZS, IZU, DiscreteModel, ModelNoise, RoadModel, \
+        measurement_covariance
+    from suspension_estimation.estimators.tuning import TUNING
+
+    noise = replace(ModelNoise(), q_f=TUNING.force_error_q, q_b=q_b, tau_b=TUNING.force_bias_tau)
+    m = DiscreteModel.build(NOMINAL, SPEED, iso8608.class_psd_n0(3), H, RoadModel(), noise)
+    assert m.Phi.shape[0] == 6 + noise.force_states
+    kf = LinearKF(m.Phi.shape[0], 3)
+    kf.set_model(m.Phi, m.Q, m.H, measurement_covariance(0.05, 0.5, 5e-4))
+    assert kf.stationary()
+    kf.x = np.zeros(m.Phi.shape[0])
+    d0 = -0.005  # m
+    z = np.array([0.0, 0.0, d0])
+    for _ in range(int(round(60.0 / H))):
+        kf.step(z)
+    x = kf.x
+    assert x[IZS] - x[IZU] == pytest.approx(d0, rel=0.03)
+    assert abs(x[IZR] - x[IZU]) < 0.01 * abs(d0)  # the tyre carries no part of it
+    if q_b > 0:
+        assert x[6:].sum() == pytest.approx(-NOMINAL.k_s * d0, rel=0.01)
+        assert abs(x[IZR]) < 2 * abs(d0), x
+    else:
+        assert abs(x[IZR]) > 20 * abs(d0), x
