@@ -3,6 +3,7 @@ plant (air spring + asymmetric damper, plant/nonlinear_car.py) is measured so fa
 
     .venv/bin/python benchmarks/robust_cores.py [--classes C] [--speeds 40,80] [--seeds 1] [--seed0 1]
         [--duration 60] [--cases exact,c_s -30%,...,nonlinear] [--estimators "default;KF (0)"]
+        [--set '{"refilter_span": 4}']
 
 Plant: plant.QuarterCar with the vehicle of each case of harness/studies/robust.py, or
 plant.NonlinearQuarterCar with the default air spring and damper ("nonlinear": the estimators
@@ -17,6 +18,7 @@ error's rms (mm, with its mean), in-band gain, 2-sigma coverage, mean sprung-mas
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
@@ -86,7 +88,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cases", default=",".join([*CASES, "nonlinear"]))
     ap.add_argument("--estimators", default=";".join(ESTIMATORS), help="names of ESTIMATORS, separated by ';'")
     ap.add_argument("--seed0", type=int, default=1, help="first seed (default 1)")
+    ap.add_argument("--set", default="{}", help='extra estimator keywords as JSON, e.g. \'{"refilter_span": 4}\'')
     a = ap.parse_args(argv)
+    try:
+        extra = json.loads(a.set)
+        assert isinstance(extra, dict)
+    except (ValueError, AssertionError):
+        print(f"error: --set takes a JSON object, not {a.set!r}", file=sys.stderr)
+        return 1
     cases = [c.strip() for c in a.cases.split(",")]
     chosen = {n.strip(): ESTIMATORS.get(n.strip()) for n in a.estimators.split(";")}
     if None in chosen.values():
@@ -107,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
                     t, meas, zr, told = drive(case, cls, kmh / 3.6, a.duration, seed)
                     for name, kw in chosen.items():
                         maps = MAPS if case == "nonlinear" and name in OBSERVERS else {}
-                        rows[name].append(score(t, meas, zr, told, kmh / 3.6, **kw, **maps))
+                        rows[name].append(score(t, meas, zr, told, kmh / 3.6, **{**kw, **extra}, **maps))
                 for name, r in rows.items():
                     m = {k: np.mean([x[k] for x in r]) for k in r[0]}
                     print(f"| {letter.strip().upper()} | {kmh:g} | {case} | {name} | {m['err_std_hp_pct']:.2f} | "

@@ -290,6 +290,9 @@ class SuspensionEstimator:
         self.mass_est = (MassEstimator(cfg.m_s_nominal, cfg.k_s, cfg.c_s, cfg.forgetting_factor,
                                        damping, m_bounds=bounds, acc_noise_std=cfg.acc_sprung_noise_std,
                                        defl_noise_std=cfg.defl_noise_std) if cfg.mass_estimator == 1 else None)
+        # the episode at the start of the run spans damping_refilter_span (see _span)
+        self._long_start = bool(self.anchor is not None and self.mass_est is not None
+                                and self.mass_est.estimate_damping)
         self.classifier = RoadClassifier(gain=cfg.tuning.class_gain)
         self.iri = IRIMeter(cfg.iri_segment, start=0.0)  # raises a ValueError naming iri_segment
         self.model: DiscreteModel | None = None
@@ -502,7 +505,7 @@ class SuspensionEstimator:
         common mode is not left where the wrong-mass innovations pushed it. False if no
         snapshot applies (too old, or the model changed for another reason since)."""
         onset = self._onset
-        if self.time - onset > self.cfg.tuning.refilter_span:
+        if self.time - onset > self._span():
             return False
         snap = None
         for sn in self._snaps:
@@ -609,7 +612,17 @@ class SuspensionEstimator:
 
     def _episode_closed(self) -> bool:
         return (self._confirmed_for >= self.cfg.tuning.refilter_confirm
-                or self.time - self._onset > self.cfg.tuning.refilter_span)
+                or self.time - self._onset > self._span())
+
+    def _span(self) -> float:
+        """s after the onset of a mass-change episode within which a rebuild re-filters:
+        ``refilter_span``, or ``damping_refilter_span`` for the episode at the start of the run
+        when the damping is estimated: its first value comes 1.6-2.02 s into the data, at the
+        edge of a 2 s span, and the mass rebuilds at it and after it belong to the same episode."""
+        t = self.cfg.tuning
+        if self._long_start and self._onset == 0.0 and not self._nonlinear:
+            return max(t.refilter_span, t.damping_refilter_span)
+        return t.refilter_span
 
     def _keep_snapshots(self) -> None:
         """Snapshot the filter every snapshot_interval s; drop what no re-filter can use."""
@@ -617,7 +630,7 @@ class SuspensionEstimator:
         if snaps and self.time - snaps[-1][0] < cfg.tuning.snapshot_interval - 1e-12:
             return
         self._snap()
-        old = self.time - cfg.tuning.refilter_span - cfg.tuning.refilter_lookback
+        old = self.time - self._span() - cfg.tuning.refilter_lookback
         while len(snaps) > 1 and snaps[1][0] <= old:
             snaps.popleft()
         rec, k0 = self._record, snaps[0][1]
