@@ -92,8 +92,9 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     try:
         extra = json.loads(a.set)
-        assert isinstance(extra, dict)
-    except (ValueError, AssertionError):
+    except ValueError:
+        extra = None
+    if not isinstance(extra, dict):
         print(f"error: --set takes a JSON object, not {a.set!r}", file=sys.stderr)
         return 1
     cases = [c.strip() for c in a.cases.split(",")]
