@@ -5,12 +5,13 @@ writes ``<out>/<scenario>.csv`` and PNG plots (default ``results/<scenario>/``).
 
 ``python -m suspension_estimation.harness paper [--study NAME ...] [--seeds N] [--duration S] [--warmup S] [--step S]
 [--classes B,C,D] [--workers N] [--out DIR] [--study10ms] [--class-study N] [--dask]
-[--scheduler ADDRESS] [--dist DIR]``: the papers' studies through the FMUs (one module each in
+[--scheduler ADDRESS] [--dist DIR] [--resume]``: the papers' studies through the FMUs (one module each in
 harness/studies/, named in its registry; without ``--study``: table2 and mass; with ``--dask`` or
 ``--scheduler`` on Dask through the sweep runner, harness/sweep.py, each worker reusing its FMU
 instances); prints the tables and targets as markdown, writes ``<out>/paper_tables.md``,
-``<out>/paper_runs.json`` and PNG plots (default ``results/paper/``). Exits 1 if any run failed
-(after reporting it and finishing the others).
+``<out>/paper_runs.json`` and PNG plots (default ``results/paper/``); each run's result is appended
+to ``<out>/runs.jsonl`` as it lands, and ``--resume`` runs only those not completed there. Exits 1
+if any run failed (after reporting it and finishing the others).
 
 ``python -m suspension_estimation.harness sweep <file> [--workers N] [--scheduler ADDRESS] [--out DIR] [--dist DIR]
 [--skip-failed] [--limit N]``: a grid or Monte Carlo study on Dask (harness/sweep.py); one row of
@@ -61,17 +62,19 @@ def _run(args: argparse.Namespace) -> int:
 
 def _paper(args: argparse.Namespace) -> int:
     from .studies.runner import parse_classes
-    from .studies.suite import PaperStudy
+    from .studies.suite import CHECKPOINT, PaperStudy
 
     study = PaperStudy(seeds=args.seeds, duration=args.duration, warmup=args.warmup, step=args.step,
                        classes=parse_classes(args.classes), workers=args.workers, study10ms=args.study10ms,
                        class_seeds=args.class_study, dask=args.dask, scheduler=args.scheduler,
-                       dist=Path(args.dist), out=Path(args.out), studies=tuple(args.study or ()))
+                       dist=Path(args.dist), out=Path(args.out), studies=tuple(args.study or ()),
+                       resume=args.resume)
     study.run(progress=not args.quiet)
     files = study.write()
     print(study.markdown(), end="")
     for f in files:
         print(f"wrote {f}")
+    print(f"{study.ran} runs co-simulated now, {study.reused} taken from {Path(args.out) / CHECKPOINT}")
     return 1 if study.failures() else 0
 
 
@@ -123,6 +126,8 @@ def main(argv: list[str] | None = None) -> int:
                        help="run on a Dask LocalCluster of --workers processes (the sweep runner: FMUs reused per worker)")
     paper.add_argument("--scheduler", metavar="ADDRESS", help="run on the Dask cluster at ADDRESS")
     paper.add_argument("--dist", default=str(DIST), help="folder with the FMUs (default dist/)")
+    paper.add_argument("--resume", action="store_true",
+                       help="keep the completed runs in <out>/runs.jsonl (same FMUs) and run only the others")
     paper.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     paper.set_defaults(func=_paper)
     sweep = sub.add_parser("sweep", help="a grid or Monte Carlo study on Dask, rows of metrics to Parquet")

@@ -404,9 +404,10 @@ def _run_spec(item: tuple[int, RunSpec, Callable | None]) -> tuple[int, dict]:
 
 def run_specs(specs: Sequence[RunSpec], workers: int = 2, scheduler: str | None = None,
               progress: bool = True, log: Callable[[str], None] | None = None,
-              runs: Mapping[str, Callable[[RunSpec], dict]] | None = None) -> list[dict]:
-    """The studies' runs (``runner.run_one`` results, in the order of ``specs``; ``runs`` as for
-    ``runner.run_all``) on Dask: a LocalCluster of ``workers`` processes or the cluster at
+              runs: Mapping[str, Callable[[RunSpec], dict]] | None = None,
+              done: Callable[[dict], None] | None = None) -> list[dict]:
+    """The studies' runs (``runner.run_one`` results, in the order of ``specs``; ``runs`` and
+    ``done`` as for ``runner.run_all``) on Dask: a LocalCluster of ``workers`` processes or the cluster at
     ``scheduler``; each worker reuses its CoSimulations. What ``python -m suspension_estimation.harness paper --dask``
     runs."""
     require_extra("distributed")
@@ -424,6 +425,8 @@ def run_specs(specs: Sequence[RunSpec], workers: int = 2, scheduler: str | None 
             def on_result(item, value) -> None:
                 i, res = value
                 results[i] = res
+                if done is not None:
+                    done(res)
                 if not res["ok"]:
                     say(f"failed: {res['name']}: {res['error']}")
                 bar.update(1)

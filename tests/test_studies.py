@@ -13,7 +13,7 @@ import pytest
 
 from suspension_estimation.harness.studies import STUDIES, load
 from suspension_estimation.harness.studies.runner import RunSpec, Study, run_one
-from suspension_estimation.harness.studies.suite import PaperStudy
+from suspension_estimation.harness.studies.suite import CHECKPOINT, FMUS, PaperStudy, read_checkpoint
 
 ROOT = Path(__file__).resolve().parents[1]
 H = "suspension_estimation.harness"  # the folder harness/ as installed
@@ -102,7 +102,42 @@ def test_cli_study_chooses_the_studies(dist, tmp_path):
     assert data["config"]["studies"] == ["mass"] and [r["spec"]["study"] for r in data["runs"]] == ["mass"]
     md = (tmp_path / "paper_tables.md").read_text()
     assert "(b) Vehicle-mass paper" in md and "(a) MME&KF" not in md
-    assert sorted(f.name for f in tmp_path.iterdir()) == ["mass_paper001.png", "paper_runs.json", "paper_tables.md"]
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["mass_paper001.png", "paper_runs.json", "paper_tables.md",
+                                                          "runs.jsonl"]
     bad = subprocess.run([sys.executable, "-m", "suspension_estimation.harness", "paper", "--study", "nope", "--dist", str(dist)],
                          capture_output=True, text=True, cwd=ROOT, timeout=60)
     assert bad.returncode == 1 and bad.stderr.count("\n") == 1 and "no study 'nope'" in bad.stderr, bad.stderr
+
+
+def test_a_resumed_study_runs_only_what_the_checkpoint_lacks(dist, tmp_path):
+    def study(resume: bool) -> PaperStudy:
+        return PaperStudy(studies=("table2",), seeds=2, duration=0.3, warmup=0.1, classes=(3,), workers=1,
+                          dist=dist, out=tmp_path, resume=resume).run(progress=False)
+
+    first = study(False)
+    n = len(first.results)
+    assert n >= 2 and first.ran == n and first.reused == 0
+    ck = tmp_path / CHECKPOINT
+    lines = ck.read_text().splitlines()
+    assert len(lines) == n + 1  # the FMU digests, then one line per run
+    again = study(True)
+    assert again.ran == 0 and again.reused == n
+    # through JSON, so that NaN (a score a run does not define) compares equal to itself
+    assert ([json.dumps(r["estimators"], sort_keys=True) for r in again.results]
+            == [json.dumps(r["estimators"], sort_keys=True) for r in first.results])
+    assert [r["spec"] for r in again.results] == [r["spec"] for r in first.results]
+    tables = lambda s: s.markdown().split("## Where the time goes")[0]  # noqa: E731
+    assert "PASS" in tables(first) or "MISS" in tables(first)
+    assert tables(again) == tables(first)
+    ck.write_text("\n".join(lines[:-1]) + "\n" + lines[-1][:40])  # the last run torn mid-write
+    third = study(True)
+    assert third.ran == 1 and third.reused == n - 1
+    assert [r["spec"] for r in third.results] == [r["spec"] for r in first.results]
+    fresh = study(False)  # without resume the checkpoint starts again
+    assert fresh.ran == n and len(ck.read_text().splitlines()) == n + 1
+    other = tmp_path / "other"
+    other.mkdir()
+    for f in FMUS:
+        (other / f).write_bytes((Path(dist) / f).read_bytes() + (b"x" if f == "QuarterCar.fmu" else b""))
+    with pytest.raises(ValueError, match="other FMUs"):
+        read_checkpoint(ck, other)

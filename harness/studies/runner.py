@@ -350,12 +350,13 @@ def process_pool(workers: int) -> ProcessPoolExecutor:
 
 def run_all(specs: Sequence[RunSpec], workers: int = 2, progress: bool = True,
             log: Callable[[str], None] | None = None,
-            runs: Mapping[str, Callable[[RunSpec], dict]] | None = None) -> list[dict]:
+            runs: Mapping[str, Callable[[RunSpec], dict]] | None = None,
+            done: Callable[[dict], None] | None = None) -> list[dict]:
     """Run the specs in ``workers`` spawned processes (results in the order of ``specs``); a spec
     whose kind (``RunSpec.study``) is in ``runs`` is run by that function (it must be a module's
-    top-level function, to reach the workers), any other as a table-2 run. A worker that dies
-    takes its pending runs with it: they are retried once in a fresh pool, then reported as
-    failed."""
+    top-level function, to reach the workers), any other as a table-2 run. ``done(result)`` is
+    called in this process as each run's result lands (a checkpoint). A worker that dies takes its
+    pending runs with it: they are retried once in a fresh pool, then reported as failed."""
     from tqdm import tqdm
 
     os.environ.update(THREAD_ENV)  # inherited by the spawned workers before they import numpy
@@ -378,6 +379,8 @@ def run_all(specs: Sequence[RunSpec], workers: int = 2, progress: bool = True,
                         broken.append(i)
                         continue
                     bar.update(1)
+                    if done is not None:
+                        done(results[i])
                     if not results[i]["ok"]:
                         say(f"failed: {specs[i].name}: {results[i]['error']}")
             finally:
@@ -389,6 +392,8 @@ def run_all(specs: Sequence[RunSpec], workers: int = 2, progress: bool = True,
                     results[i] = {"spec": asdict(specs[i]), "name": specs[i].name, "ok": False, "wall_s": 0.0,
                                   "error": "its worker process died (twice)"}
                     bar.update(1)
+                    if done is not None:
+                        done(results[i])
                     say(f"failed: {specs[i].name}: {results[i]['error']}")
                 else:
                     pending.append(i)

@@ -6,12 +6,17 @@ with ``dask`` or ``scheduler``: to Dask workers through ``harness.sweep.run_spec
 its CoSimulations and resetting them between runs). A run that fails is reported with its reason
 and the study goes on. Means ± standard deviations (ddof 1) are over the seeds that completed.
 The command reports, it never tunes: each study marks its targets PASS/MISS.
+
+Each run's result is appended to ``<out>/runs.jsonl`` as it lands (first line: the SHA-256 of the
+FMUs). With ``resume`` the completed runs found there are kept and only the others run, so a study
+of many hours survives a stop; the FMUs must be the same files, else the resume is refused.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import time
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +25,52 @@ from . import STUDIES, load
 from .runner import (CLASS_LETTERS, DIST, NOISE_SEED_OFFSET, OUT, RunSpec, Study, jsonable, run_all, whole_steps)
 
 DEFAULT_STUDIES = ("table2", "mass")  # without --study; --study10ms and --class-study N add theirs
+CHECKPOINT = "runs.jsonl"  # in ``out``: one JSON line per finished run
+FMUS = ("ISORoad.fmu", "QuarterCar.fmu", "SuspensionEstimator.fmu")
+
+
+def spec_key(spec: dict) -> str:
+    """A run's identity in the checkpoint: its spec (``asdict(RunSpec)``) as canonical JSON, without
+    the FMU folder (the FMUs themselves are checked by their digests)."""
+    return json.dumps(jsonable({k: v for k, v in spec.items() if k != "dist"}), sort_keys=True)
+
+
+def _plain(x):
+    """json.dumps ``default``: numpy arrays and scalars as Python lists and numbers."""
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, np.generic):
+        return x.item()
+    raise TypeError(f"{type(x).__name__} is not JSON serialisable")
+
+
+def fmu_digests(dist: Path) -> dict[str, str]:
+    """SHA-256 of each FMU the studies run."""
+    return {f: hashlib.sha256((Path(dist) / f).read_bytes()).hexdigest() for f in FMUS}
+
+
+def read_checkpoint(path: Path, dist: Path) -> dict[str, dict]:
+    """spec_key -> the completed runs (``ok``) in the checkpoint ``path``; the last line of a spec
+    wins and a torn last line (the process killed mid-write) is skipped. Raises ValueError if the
+    checkpoint was written with other FMUs than those in ``dist``."""
+    lines = Path(path).read_text().splitlines()
+    try:
+        head = json.loads(lines[0]) if lines else {}
+    except json.JSONDecodeError:
+        head = {}
+    if head.get("fmus") != fmu_digests(dist):
+        raise ValueError(f"{path} was written with other FMUs than those in {dist}: run without --resume")
+    kept: dict[str, dict] = {}
+    for line in lines[1:]:
+        try:
+            r = json.loads(line)
+        except json.JSONDecodeError:
+            continue
+        if r.get("ok"):
+            if "traces" in r:
+                r["traces"] = {k: np.asarray(v, float) for k, v in r["traces"].items()}
+            kept[spec_key(r["spec"])] = r
+    return kept
 
 
 @dataclass
@@ -39,6 +90,9 @@ class PaperStudy:
     results: list[dict] = field(default_factory=list)
     wall_s: float = 0.0
     studies: tuple[str, ...] = ()  # names in harness.studies.STUDIES; () = DEFAULT_STUDIES
+    resume: bool = False  # keep the completed runs of ``out``/runs.jsonl, run only the others
+    ran: int = 0  # runs co-simulated by the last ``run``
+    reused: int = 0  # runs the last ``run`` took from the checkpoint
 
     def __post_init__(self) -> None:
         if "class" in self.studies and not self.class_seeds:
@@ -72,7 +126,7 @@ class PaperStudy:
             raise ValueError(f"classes {self.classes} must be ISO classes A..H")
         for s in self.chosen():
             s.check(self)
-        for f in ("ISORoad.fmu", "QuarterCar.fmu", "SuspensionEstimator.fmu"):
+        for f in FMUS:
             if not (Path(self.dist) / f).is_file():
                 raise FileNotFoundError(f"{Path(self.dist) / f} does not exist (build it: .venv/bin/python build.py)")
 
@@ -86,12 +140,31 @@ class PaperStudy:
     def run(self, progress: bool = True) -> PaperStudy:
         self.check()
         t0 = time.perf_counter()
-        if self.dask or self.scheduler:
-            from ..sweep import run_specs
+        specs = self.specs()
+        path = Path(self.out) / CHECKPOINT
+        kept = read_checkpoint(path, self.dist) if self.resume and path.is_file() else {}
+        pending = [s for s in specs if spec_key(asdict(s)) not in kept]
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if not kept:
+            path.write_text(json.dumps({"fmus": fmu_digests(self.dist)}) + "\n")
+        with path.open("a") as f:
+            def done(res: dict) -> None:
+                f.write(json.dumps(res, default=_plain) + "\n")
+                f.flush()
 
-            self.results = run_specs(self.specs(), self.workers, self.scheduler, progress, runs=self.runs())
-        else:
-            self.results = run_all(self.specs(), self.workers, progress, runs=self.runs())
+            if self.dask or self.scheduler:
+                from ..sweep import run_specs
+
+                new = run_specs(pending, self.workers, self.scheduler, progress, runs=self.runs(), done=done)
+            else:
+                new = run_all(pending, self.workers, progress, runs=self.runs(), done=done) if pending else []
+        kept.update((spec_key(r["spec"]), r) for r in new)
+        self.results = []
+        for s in specs:
+            r = kept[spec_key(asdict(s))]
+            r["spec"] = asdict(s)  # tuples again where JSON made lists, so ``ok(**match)`` finds it
+            self.results.append(r)
+        self.ran, self.reused = len(pending), len(specs) - len(pending)
         self.wall_s = time.perf_counter() - t0
         return self
 
