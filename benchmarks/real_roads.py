@@ -1,11 +1,14 @@
 """Road estimate, its 2-sigma coverage and the IRI on the test roads, through the built FMUs.
 
     .venv/bin/python benchmarks/real_roads.py [--roads sag,curves,...] [--speeds 40,72] [--seeds 1-3]
-        [--dist dist] [--workers 2]
+        [--cases exact,"all -",nonlinear,...] [--dist dist] [--workers 2]
 
-ISORoad (the road of harness.testroads.make_road written as a profile file) -> QuarterCar (the
-contract's default vehicle at 410 kg, its sensor noise with ``noise_seed``) -> the default
-SuspensionEstimator, 1 ms steps, the whole road. Per road and speed, means over the noise seeds
+ISORoad (the road of harness.testroads.make_road written as a profile file) -> QuarterCar (410 kg,
+its sensor noise with ``noise_seed``) -> the default SuspensionEstimator told the contract's default
+vehicle, 1 ms steps, the whole road. The plant is that vehicle ("exact"), or a case of the robustness
+study (harness/studies/robust.py ``CASES``: c_s, k_s, k_t, m_u off alone or all together), or its
+air-spring plant with the asymmetric damper ("nonlinear", the estimator then told the linearisation
+at the static point). Per case, road and speed, means over the noise seeds
 (the road is the same): HP road error std % (harness.metrics), the raw error rms against
 ``reference_road`` (what road_height_est estimates) and the rms road_height_std after the 10 s
 warm-up, their ratio (pooled over the seeds: sqrt(mean rms^2 / mean std^2)), the 2-sigma
@@ -28,11 +31,18 @@ EVENT_AT = 300.0  # m, where harness.testroads puts the bump and the pothole
 H = 1e-3
 
 
-def run(road: str, kmh: float, seed: int, dist: str) -> dict:
+def run(road: str, kmh: float, seed: int, dist: str, case: str = "exact") -> dict:
     """One run through the FMUs; the scores of the module doc."""
     from suspension_estimation.harness import metrics
     from suspension_estimation.harness.cosim import CoSimulation, System
+    from suspension_estimation.harness.studies import robust
+    from suspension_estimation.harness.studies.runner import VEHICLE_KEYS
     from suspension_estimation.harness.testroads import make_road, write_profile
+
+    params = {f"plant.{k}": v for k, v in zip(VEHICLE_KEYS, robust.plant_vehicle(case))}
+    if case == robust.NONLINEAR:
+        params["plant.spring_model"], params["plant.damper_model"] = robust.NONLINEAR_MODELS
+        params.update({f"e.{k}": v for k, v in robust.linearisation().items()})
 
     s, h = make_road(road)
     d = Path(dist)
@@ -45,7 +55,7 @@ def run(road: str, kmh: float, seed: int, dist: str) -> dict:
         v = kmh / 3.6
         rec_names = ["road.road_height", "road.distance", "road.iri", "e.road_height_est", "e.road_height_std",
                      "e.iri_est", "e.sprung_mass_est", "e.mass_std"]
-        with CoSimulation(System(comps, conn), parameters={"road.profile_file": str(f), "plant.noise_seed": seed},
+        with CoSimulation(System(comps, conn), parameters={"road.profile_file": str(f), "plant.noise_seed": seed, **params},
                           inputs={"vehicle_speed": v, "plant.sprung_mass": 410.0}, record=rec_names) as sim:
             rec = sim.run(round((s[-1] - 1.0) / v / H) * H, H)
     t = rec["time"]
@@ -56,7 +66,7 @@ def run(road: str, kmh: float, seed: int, dist: str) -> dict:
     near = np.abs(rec["road.distance"] - EVENT_AT) < 5.0
     segs = metrics.iri_segments(rec["road.distance"], rec["road.iri"], rec["e.iri_est"])[1:]
     iri = np.array([x[3] for x in segs]) if segs else np.array([np.nan])
-    return {"road": road, "kmh": kmh, "seed": seed, "hp": sc["err_std_hp_pct"], "cov": sc["coverage_2sigma"],
+    return {"case": case, "road": road, "kmh": kmh, "seed": seed, "hp": sc["err_std_hp_pct"], "cov": sc["coverage_2sigma"],
             "rms": sc["rmse_raw_mm"], "std": float(1e3 * np.sqrt(np.mean(std[keep] ** 2))),
             "event": float(1e3 * np.max(np.abs(est - truth)[near])) if road in ("bump", "pothole") else np.nan,
             "iri_mean": float(np.mean(iri)), "iri_worst": float(iri[np.argmax(np.abs(iri))]),
@@ -70,38 +80,41 @@ def _seeds(text: str) -> range:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from suspension_estimation.harness.studies.robust import ALL_CASES
     from suspension_estimation.harness.testroads import TEST_ROADS
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--roads", default=",".join(TEST_ROADS))
     ap.add_argument("--speeds", default="40,72", help="km/h")
     ap.add_argument("--seeds", default="1-3", help="sensor-noise seeds, a range like 1-3")
+    ap.add_argument("--cases", default="exact", help=f"plants, comma-separated, of: {', '.join(ALL_CASES)}")
     ap.add_argument("--dist", default=str(ROOT / "dist"))
     ap.add_argument("--workers", type=int, default=2)
     a = ap.parse_args(argv)
     roads = [r.strip() for r in a.roads.split(",")]
-    if any(r not in TEST_ROADS for r in roads) or a.workers < 1:
-        print(f"real_roads: --roads takes names of {', '.join(TEST_ROADS)}; --workers >= 1", file=sys.stderr)
+    cases = [c.strip() for c in a.cases.split(",")]
+    if any(r not in TEST_ROADS for r in roads) or any(c not in ALL_CASES for c in cases) or a.workers < 1:
+        print(f"real_roads: --roads takes names of {', '.join(TEST_ROADS)}, --cases of {', '.join(ALL_CASES)}; "
+              "--workers >= 1", file=sys.stderr)
         return 2
     speeds = [float(x) for x in a.speeds.split(",")]
-    jobs = [(r, k, s, a.dist) for r in roads for k in speeds for s in _seeds(a.seeds)]
+    jobs = [(r, k, s, a.dist, c) for c in cases for r in roads for k in speeds for s in _seeds(a.seeds)]
     with ProcessPoolExecutor(a.workers) as pool:
         res = list(pool.map(run, *zip(*jobs)))
     print(f"through the FMUs, noise seeds {a.seeds} (means; IRI worst over seeds and segments)")
-    print("| road | km/h | HP % | raw rms mm | std rms mm | rms err / rms std | 2σ coverage % | coverage range % | "
+    print("| plant | road | km/h | HP % | raw rms mm | std rms mm | rms err / rms std | 2σ coverage % | coverage range % | "
           "max err near event mm | IRI err mean % | IRI err worst % | mass err % | mass_std % |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
-    for r in roads:
-        for k in speeds:
-            x = [y for y in res if y["road"] == r and y["kmh"] == k]
-            m = {key: float(np.mean([y[key] for y in x])) for key in x[0] if key not in ("road", "kmh", "seed")}
-            worst = max((y["iri_worst"] for y in x), key=abs)
-            ev = "" if np.isnan(m["event"]) else f"{m['event']:.1f}"
-            ratio = np.sqrt(np.mean([y["rms"] ** 2 for y in x]) / np.mean([y["std"] ** 2 for y in x]))
-            cov = [100 * y["cov"] for y in x]
-            print(f"| {r} | {k:g} | {m['hp']:.2f} | {m['rms']:.2f} | {m['std']:.2f} | {ratio:.2f} | "
-                  f"{100 * m['cov']:.1f} | {min(cov):.0f}-{max(cov):.0f} | {ev} | "
-                  f"{m['iri_mean']:+.2f} | {worst:+.2f} | {m['mass']:+.2f} | {m['mass_std']:.2f} |", flush=True)
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for c, r, k in ((c, r, k) for c in cases for r in roads for k in speeds):
+        x = [y for y in res if y["case"] == c and y["road"] == r and y["kmh"] == k]
+        m = {key: float(np.mean([y[key] for y in x])) for key in x[0] if key not in ("case", "road", "kmh", "seed")}
+        worst = max((y["iri_worst"] for y in x), key=abs)
+        ev = "" if np.isnan(m["event"]) else f"{m['event']:.1f}"
+        ratio = np.sqrt(np.mean([y["rms"] ** 2 for y in x]) / np.mean([y["std"] ** 2 for y in x]))
+        cov = [100 * y["cov"] for y in x]
+        print(f"| {c} | {r} | {k:g} | {m['hp']:.2f} | {m['rms']:.2f} | {m['std']:.2f} | {ratio:.2f} | "
+              f"{100 * m['cov']:.1f} | {min(cov):.0f}-{max(cov):.0f} | {ev} | "
+              f"{m['iri_mean']:+.2f} | {worst:+.2f} | {m['mass']:+.2f} | {m['mass_std']:.2f} |", flush=True)
     return 0
 
 

@@ -793,7 +793,9 @@ class SuspensionEstimator:
                         if not self._episode_closed():
                             self._refilter()
                 c = me.damping
-                if (self.anchor is not None and abs(c - self.c_model) > cfg.tuning.damping_rebuild_tol * self.c_model
+                tol = (cfg.tuning.damping_rebuild_tol if cfg.tuning.refilter_span > 0 and not self._episode_closed()
+                       else cfg.tuning.damping_rebuild_tol_late)
+                if (self.anchor is not None and abs(c - self.c_model) > tol * self.c_model
                         and self.time - self._last_rebuild >= cfg.tuning.mass_rebuild_interval):
                     self.c_model = c  # the anchor filter at the identified damping
                     self._last_rebuild = self.time
