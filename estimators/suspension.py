@@ -784,7 +784,10 @@ class SuspensionEstimator:
                 # (road_estimator 2: and the damping estimated, whose first value also re-filters)
                 agree_all = agree and math.isfinite(sd) and (self.anchor is None or me.damping_identified)
                 self._confirmed_for = self._confirmed_for + h if agree_all else 0.0
-                if not agree and self.time - self._last_rebuild >= cfg.tuning.mass_rebuild_interval:
+                # outside a re-filter episode a rebuild cannot be re-filtered: only a large change
+                in_episode = cfg.tuning.refilter_span > 0 and not self._episode_closed()
+                if (not agree and self.time - self._last_rebuild >= cfg.tuning.mass_rebuild_interval
+                        and (in_episode or abs(m - self.m_model) > cfg.tuning.mass_rebuild_tol_late * self.m_model)):
                     self.m_model = m
                     self._last_rebuild = self.time
                     self.mass_rebuilds += 1
