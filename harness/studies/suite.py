@@ -144,6 +144,10 @@ class PaperStudy:
         path = Path(self.out) / CHECKPOINT
         kept = read_checkpoint(path, self.dist) if self.resume and path.is_file() else {}
         pending = [s for s in specs if spec_key(asdict(s)) not in kept]
+        if self.dask or self.scheduler:
+            from ..sweep import require_extra, run_specs
+
+            require_extra("distributed")  # before anything is written
         path.parent.mkdir(parents=True, exist_ok=True)
         if not kept:
             path.write_text(json.dumps({"fmus": fmu_digests(self.dist)}) + "\n")
@@ -153,8 +157,6 @@ class PaperStudy:
                 f.flush()
 
             if self.dask or self.scheduler:
-                from ..sweep import run_specs
-
                 new = run_specs(pending, self.workers, self.scheduler, progress, runs=self.runs(), done=done)
             else:
                 new = run_all(pending, self.workers, progress, runs=self.runs(), done=done) if pending else []
