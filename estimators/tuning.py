@@ -48,7 +48,7 @@ class Tuning:
     # damping wanders by a few % after its first value (1997-2062 N.s/m on the sag road at
     # 72 km/h, k_s 17000 N/m told exactly), and an anchor rebuilt at a new damping during a large
     # vertical motion moves the road's low-frequency level: there raw road error 18.3 mm rms with
-    # 0.03 against 5.3 mm without the rebuild (benchmarks/real_roads.py --cases "k_s -15%")
+    # 0.03 against 5.3 mm without the rebuild (tests/test_robust.py, docs/robustness.md)
     damping_rebuild_tol_late: float = 0.10
     # road_estimator 2: each step the force-error filter's common velocity (v_s, v_u, v_r alike)
     # moves towards the anchor's by 2 pi align_hz h: its own is pinned only by the 0.01 Hz
