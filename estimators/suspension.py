@@ -793,17 +793,18 @@ class SuspensionEstimator:
                     self.mass_rebuilds += 1
                     if cfg.tuning.refilter_span > 0:
                         self._ensure_model(speed, h)  # rebuild now and re-filter the change
-                        if not self._episode_closed():
+                        if in_episode:
                             self._refilter()
                 c = me.damping
-                tol = (cfg.tuning.damping_rebuild_tol if cfg.tuning.refilter_span > 0 and not self._episode_closed()
-                       else cfg.tuning.damping_rebuild_tol_late)
+                # again: a re-filter above may have dropped the anchor, which ends the start episode
+                in_episode = cfg.tuning.refilter_span > 0 and not self._episode_closed()
+                tol = cfg.tuning.damping_rebuild_tol if in_episode else cfg.tuning.damping_rebuild_tol_late
                 if (self.anchor is not None and abs(c - self.c_model) > tol * self.c_model
                         and self.time - self._last_rebuild >= cfg.tuning.mass_rebuild_interval):
                     self.c_model = c  # the anchor filter at the identified damping
                     self._last_rebuild = self.time
                     self._ensure_model(speed, h)
-                    if cfg.tuning.refilter_span > 0 and not self._episode_closed():
+                    if in_episode:
                         self._refilter()
         if cfg.tuning.refilter_span > 0:
             self._keep_snapshots()

@@ -36,7 +36,9 @@ def spec_key(spec: dict) -> str:
 
 
 def _plain(x):
-    """json.dumps ``default``: numpy arrays and scalars as Python lists and numbers."""
+    """json.dumps ``default``: numpy arrays and scalars as Python lists and numbers. Not
+    ``jsonable``, which writes NaN as the string "nan": a resumed result must read back as the
+    float the run returned."""
     if isinstance(x, np.ndarray):
         return x.tolist()
     if isinstance(x, np.generic):
