@@ -785,27 +785,28 @@ class SuspensionEstimator:
                 agree_all = agree and math.isfinite(sd) and (self.anchor is None or me.damping_identified)
                 self._confirmed_for = self._confirmed_for + h if agree_all else 0.0
                 # outside a re-filter episode a rebuild cannot be re-filtered: only a large change
-                in_episode = cfg.tuning.refilter_span > 0 and not self._episode_closed()
-                if (not agree and self.time - self._last_rebuild >= cfg.tuning.mass_rebuild_interval
-                        and (in_episode or abs(m - self.m_model) > cfg.tuning.mass_rebuild_tol_late * self.m_model)):
-                    self.m_model = m
-                    self._last_rebuild = self.time
-                    self.mass_rebuilds += 1
-                    if cfg.tuning.refilter_span > 0:
-                        self._ensure_model(speed, h)  # rebuild now and re-filter the change
+                # (the episode is looked at only when a rebuild is in question: not per step)
+                if not agree and self.time - self._last_rebuild >= cfg.tuning.mass_rebuild_interval:
+                    in_episode = cfg.tuning.refilter_span > 0 and not self._episode_closed()
+                    if in_episode or abs(m - self.m_model) > cfg.tuning.mass_rebuild_tol_late * self.m_model:
+                        self.m_model = m
+                        self._last_rebuild = self.time
+                        self.mass_rebuilds += 1
+                        if cfg.tuning.refilter_span > 0:
+                            self._ensure_model(speed, h)  # rebuild now and re-filter the change
+                            if in_episode:
+                                self._refilter()
+                dc = abs(me.damping - self.c_model)
+                t = cfg.tuning
+                if (self.anchor is not None and dc > min(t.damping_rebuild_tol, t.damping_rebuild_tol_late) * self.c_model
+                        and self.time - self._last_rebuild >= t.mass_rebuild_interval):
+                    in_episode = t.refilter_span > 0 and not self._episode_closed()
+                    if dc > (t.damping_rebuild_tol if in_episode else t.damping_rebuild_tol_late) * self.c_model:
+                        self.c_model = me.damping  # the anchor filter at the identified damping
+                        self._last_rebuild = self.time
+                        self._ensure_model(speed, h)
                         if in_episode:
                             self._refilter()
-                c = me.damping
-                # again: a re-filter above may have dropped the anchor, which ends the start episode
-                in_episode = cfg.tuning.refilter_span > 0 and not self._episode_closed()
-                tol = cfg.tuning.damping_rebuild_tol if in_episode else cfg.tuning.damping_rebuild_tol_late
-                if (self.anchor is not None and abs(c - self.c_model) > tol * self.c_model
-                        and self.time - self._last_rebuild >= cfg.tuning.mass_rebuild_interval):
-                    self.c_model = c  # the anchor filter at the identified damping
-                    self._last_rebuild = self.time
-                    self._ensure_model(speed, h)
-                    if in_episode:
-                        self._refilter()
         if cfg.tuning.refilter_span > 0:
             self._keep_snapshots()
         x = kf.x.tolist()
