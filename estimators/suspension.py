@@ -301,7 +301,6 @@ class SuspensionEstimator:
         self.anchor_resets = 0
         self._resets_identified = 0  # anchor restarts since the damping was identified
         self._reset_times: deque = deque()
-        self._last_disagreement = -math.inf  # s, the last anchor disagreement (see _blend_step)
         self._disagree_for = 0.0  # s, leaky count of disagreement once the damping is identified
         self._replaying = False  # a re-filter is replaying buffered steps
         self._refilter_start = False  # the anchor was dropped at the start: re-filter without it
@@ -319,7 +318,8 @@ class SuspensionEstimator:
         self.mass_est = (MassEstimator(cfg.m_s_nominal, cfg.k_s, cfg.c_s, cfg.forgetting_factor,
                                        damping, m_bounds=bounds, acc_noise_std=cfg.acc_sprung_noise_std,
                                        defl_noise_std=cfg.defl_noise_std) if cfg.mass_estimator == 1 else None)
-        # the episode at the start of the run spans damping_refilter_span (see _span)
+        # the episode at the start of the run spans damping_refilter_span (see _span), and the
+        # anchor is not restarted in the first START_DISAGREE_SPAN s (_blend_step)
         self._long_start = bool(self.anchor is not None and self.mass_est is not None
                                 and self.mass_est.estimate_damping)
         self.classifier = RoadClassifier(gain=cfg.tuning.class_gain)
@@ -384,8 +384,7 @@ class SuspensionEstimator:
         kf.unfreeze()
         if self.model is None or not kf.stationary():
             kf.P = np.diag(([1e-4, 1e-4, 1e-4, 1e-4, 1e-2, 1e-1] + [1e-4] * n)[:n]) ** 2
-        self._start_kf = (copy.deepcopy(kf) if from_rest and self.anchor is not None and self.mass_est is not None
-                          and self.mass_est.estimate_damping else None)
+        self._start_kf = copy.deepcopy(kf) if from_rest and self._long_start else None
         self._start_w = 0.0
         self._record.clear()
         self._snaps.clear()
@@ -597,7 +596,7 @@ class SuspensionEstimator:
         if self._hold_left > 0.0:
             self._align()
         elif self.cfg.tuning.align_hz > 0.0 and not (
-                self.time - self._last_disagreement < ALIGN_QUIET
+                self._reset_times and self.time - self._reset_times[-1] < ALIGN_QUIET
                 and self.time - self._last_partial > ALIGN_AFTER_FAULT):
             self._align(min(2 * math.pi * self.cfg.tuning.align_hz * self._h, 1.0))
 
@@ -621,7 +620,7 @@ class SuspensionEstimator:
             P = kf.P
             if g > 0 and (y * y > g * g * P[IZR, IZR] or (a.x[IVS] - kf.x[IVS]) ** 2 > g * g * P[IVS, IVS]):
                 me = self.mass_est
-                if (me is not None and me.estimate_damping and self.time < START_DISAGREE_SPAN
+                if (self._long_start and self.time < START_DISAGREE_SPAN
                         and self.time - self._last_partial > ALIGN_AFTER_FAULT):
                     self._start_gap_until = self.time + START_DISAGREE_DROP
                     # at the start both filters are in their start transients and the anchor
@@ -637,7 +636,6 @@ class SuspensionEstimator:
                             self._distrust_anchor()
                             self._refilter_start = True
                     return
-                self._last_disagreement = self.time
                 # the anchor disagrees with the force-error filter beyond what the latter's own
                 # error explains: its linear spring and damper are wrong at low frequency (a
                 # nonlinear suspension): it restarts from the force-error filter's state
@@ -659,7 +657,7 @@ class SuspensionEstimator:
                     recent.popleft()
                 if len(recent) >= ANCHOR_DISTRUST_RESETS and self._resets_identified >= ANCHOR_DISTRUST_IDENTIFIED:
                     self._distrust_anchor()  # restarting does not help
-            elif not self._replaying:
+            elif self._disagree_for > 0.0 and not self._replaying:
                 self._disagree_for = max(self._disagree_for - self._h, 0.0)
 
     def _distrust_anchor(self) -> None:
@@ -693,14 +691,15 @@ class SuspensionEstimator:
         w = self._start_w
         w = min(w + h / START_FADE, target) if target > w else max(w - h / START_FADE, target)
         self._start_w = w
+        if w == 0.0:
+            if self.time >= START_DISAGREE_SPAN:
+                self._start_kf = None  # the start is over
+            return 0.0
         xs = sk.x.tolist()
         gap = x[IZR] - xs[IZR]
-        if w > 0.0:
-            for i in range(N_STATES):
-                x[i] = w * xs[i] + (1.0 - w) * x[i]
-        elif self.time >= START_DISAGREE_SPAN:
-            self._start_kf = None  # the start is over
-        return (max(w, 1.0 - w) * gap) ** 2 if w > 0.0 or target > 0.0 else 0.0
+        for i in range(N_STATES):
+            x[i] = w * xs[i] + (1.0 - w) * x[i]
+        return (max(w, 1.0 - w) * gap) ** 2
 
     def _episode_closed(self) -> bool:
         return (self._confirmed_for >= self.cfg.tuning.refilter_confirm

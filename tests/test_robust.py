@@ -249,6 +249,30 @@ def test_the_rebuilds_of_the_start_re_filter(seed):
     assert est.mass_est.damping_identified
 
 
+def on_test_road(road, plant, v, T, seed, watch=None, **told):
+    """(t, raw road error against reference_road, road_height_std, the estimator) of the default
+    estimator told the nominal vehicle and ``told`` on the linear ``plant`` over the test road
+    ``road`` (harness.testroads) at v m/s for at most T s; ``watch(k, estimator)`` after step k."""
+    from suspension_estimation.harness.metrics import reference_road
+    from suspension_estimation.harness.testroads import make_road
+
+    s, h = make_road(road)
+    n = int(round(min(T, (s[-1] - 1.0) / v) / H))
+    zr = np.interp(v * H * np.arange(n + 1), s, h)
+    car = QuarterCar(plant, SensorNoise(), noise_seed=seed)
+    car.settle(zr[0])
+    est = SuspensionEstimator(**told)
+    out, std = np.empty(n), np.empty(n)
+    for k in range(n):
+        car.step(zr[k + 1], H)
+        o = est.step(*car.measured, v, H)
+        out[k], std[k] = o["road_height_est"], o["road_height_std"]
+        if watch is not None:
+            watch(k, est)
+    t = H * np.arange(1, n + 1)
+    return t, out - reference_road(t, zr[1:]), std, est
+
+
 @pytest.mark.parametrize("road, k_s, told_k_s, seed", [("sag", 17000.0, 17000.0, 1), ("sag", 17000.0, 17000.0, 2),
                                                      ("curves", 0.85 * NOMINAL.k_s, NOMINAL.k_s, 2)])
 def test_no_late_rebuild_moves_the_road_on_a_sag(road, k_s, told_k_s, seed):
@@ -258,26 +282,15 @@ def test_no_late_rebuild_moves_the_road_on_a_sag(road, k_s, told_k_s, seed):
     road's low-frequency level (raw error 18.3 mm rms against 5.3 mm on the sag, noise seed 1;
     10.8 against 2.6 mm on the curves, seed 2). Outside a re-filter episode only a change beyond
     Tuning.damping_rebuild_tol_late or mass_rebuild_tol_late rebuilds."""
-    from suspension_estimation.harness.metrics import reference_road
-    from suspension_estimation.harness.testroads import make_road
+    late, builds = [], [0]
 
-    plant = NOMINAL.with_(k_s=k_s)
-    s, h = make_road(road)
-    v = 72 / 3.6
-    n = int(round(min(30.0, (s[-1] - 1.0) / v) / H))
-    zr = np.interp(v * H * np.arange(n + 1), s, h)
-    car = QuarterCar(plant, SensorNoise(), noise_seed=seed)
-    car.settle(zr[0])
-    est = SuspensionEstimator(k_s=told_k_s)
-    out, late = np.empty(n), []
-    for k in range(n):
-        car.step(zr[k + 1], H)
-        builds = est.model_builds
-        out[k] = est.step(*car.measured, v, H)["road_height_est"]
-        if est.model_builds != builds and (k + 1) * H > est.cfg.tuning.damping_refilter_span:
+    def watch(k, est):
+        if est.model_builds != builds[0] and (k + 1) * H > est.cfg.tuning.damping_refilter_span:
             late.append(((k + 1) * H, est.m_model, est.c_model))
-    t = H * np.arange(1, n + 1)
-    e = (out - reference_road(t, zr[1:]))[t > 10.0]
+        builds[0] = est.model_builds
+
+    t, err, _, _ = on_test_road(road, NOMINAL.with_(k_s=k_s), 72 / 3.6, 30.0, seed, watch, k_s=told_k_s)
+    e = err[t > 10.0]
     assert not late, late
     assert 1e3 * np.sqrt(np.mean(e ** 2)) < 9.0
 
@@ -290,24 +303,10 @@ def test_a_grade_from_the_start_with_the_damper_off(factors, seed):
     force-error filter's state then (12 times) left it 85 mm off: raw error 48.6 mm rms,
     2-sigma coverage 0 (c_s -30 %, seed 1), against 4.3 mm on the exact vehicle. Within the
     start the anchor is not restarted (suspension.START_DISAGREE_SPAN)."""
-    from suspension_estimation.harness.metrics import reference_road
-    from suspension_estimation.harness.testroads import make_road
-
-    s, h = make_road("grade")
-    n = int(round(20.0 / H))
-    zr = np.interp(SPEED * H * np.arange(n + 1), s, h)
-    car = QuarterCar(NOMINAL.with_(**{k: getattr(NOMINAL, k) * f for k, f in factors.items()}),
-                     SensorNoise(), noise_seed=seed)
-    car.settle(zr[0])
-    est = SuspensionEstimator()
-    out, std = np.empty(n), np.empty(n)
-    for k in range(n):
-        car.step(zr[k + 1], H)
-        o = est.step(*car.measured, SPEED, H)
-        out[k], std[k] = o["road_height_est"], o["road_height_std"]
-    t = H * np.arange(1, n + 1)
+    plant = NOMINAL.with_(**{k: getattr(NOMINAL, k) * f for k, f in factors.items()})
+    t, err, std, est = on_test_road("grade", plant, SPEED, 20.0, seed)
     keep = t > 10.0
-    e = (out - reference_road(t, zr[1:]))[keep]
+    e = err[keep]
     assert 1e3 * np.sqrt(np.mean(e ** 2)) < 12.0
     assert np.mean(np.abs(e) <= 2 * std[keep]) > 0.9
     assert est.anchor_trusted
