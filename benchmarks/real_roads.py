@@ -87,7 +87,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--roads", default=",".join(TEST_ROADS))
     ap.add_argument("--speeds", default="40,72", help="km/h")
     ap.add_argument("--seeds", default="1-3", help="sensor-noise seeds, a range like 1-3")
-    ap.add_argument("--cases", default="exact", help=f"plants, comma-separated, of: {', '.join(ALL_CASES)}")
+    ap.add_argument("--cases", default="exact", help="plants, comma-separated, of: " + ", ".join(ALL_CASES).replace("%", "%%"))
     ap.add_argument("--dist", default=str(ROOT / "dist"))
     ap.add_argument("--workers", type=int, default=2)
     a = ap.parse_args(argv)
