@@ -1,7 +1,7 @@
 """Road estimate, its 2-sigma coverage and the IRI on the test roads, through the built FMUs.
 
     .venv/bin/python benchmarks/real_roads.py [--roads sag,curves,...] [--speeds 40,72] [--seeds 1-3]
-        [--cases exact,"all -",nonlinear,...] [--dist dist] [--workers 2]
+        [--cases exact,"all -",nonlinear,...] [--acc-sampling 0] [--dist dist] [--workers 2]
 
 ISORoad (the road of harness.testroads.make_road written as a profile file) -> QuarterCar (410 kg,
 its sensor noise with ``noise_seed``) -> the default SuspensionEstimator told the contract's default
@@ -14,7 +14,8 @@ at the static point). Per case, road and speed, means over the noise seeds
 warm-up, their ratio (pooled over the seeds: sqrt(mean rms^2 / mean std^2)), the 2-sigma
 coverage of that error (mean over the seeds, and its range), the largest |error| within 5 m of a bump or
 pothole, the IRI error per completed 100 m segment after the first (mean and worst %), and the
-sprung-mass error and mass_std at the end.
+sprung-mass error and mass_std at the end. ``--acc-sampling 1``: the plant reports, and the
+estimator is told, accelerations averaged over each step instead of sampled at its end.
 """
 from __future__ import annotations
 
@@ -31,7 +32,7 @@ EVENT_AT = 300.0  # m, where harness.testroads puts the bump and the pothole
 H = 1e-3
 
 
-def run(road: str, kmh: float, seed: int, dist: str, case: str = "exact") -> dict:
+def run(road: str, kmh: float, seed: int, dist: str, case: str = "exact", acc_sampling: int = 0) -> dict:
     """One run through the FMUs; the scores of the module doc."""
     from suspension_estimation.harness import metrics
     from suspension_estimation.harness.cosim import CoSimulation, System
@@ -40,6 +41,8 @@ def run(road: str, kmh: float, seed: int, dist: str, case: str = "exact") -> dic
     from suspension_estimation.harness.testroads import make_road, write_profile
 
     params = {f"plant.{k}": v for k, v in zip(VEHICLE_KEYS, robust.plant_vehicle(case))}
+    if acc_sampling:
+        params["plant.acc_sampling"] = params["e.acc_sampling"] = int(acc_sampling)
     if case == robust.NONLINEAR:
         params["plant.spring_model"], params["plant.damper_model"] = robust.NONLINEAR_MODELS
         params.update({f"e.{k}": v for k, v in robust.linearisation().items()})
@@ -88,6 +91,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--speeds", default="40,72", help="km/h")
     ap.add_argument("--seeds", default="1-3", help="sensor-noise seeds, a range like 1-3")
     ap.add_argument("--cases", default="exact", help="plants, comma-separated, of: " + ", ".join(ALL_CASES).replace("%", "%%"))
+    ap.add_argument("--acc-sampling", type=int, choices=(0, 1), default=0,
+                    help="accelerations of plant and estimator: 0 at the end of each step, 1 averaged over it")
     ap.add_argument("--dist", default=str(ROOT / "dist"))
     ap.add_argument("--workers", type=int, default=2)
     a = ap.parse_args(argv)
@@ -98,10 +103,12 @@ def main(argv: list[str] | None = None) -> int:
               "--workers >= 1", file=sys.stderr)
         return 2
     speeds = [float(x) for x in a.speeds.split(",")]
-    jobs = [(r, k, s, a.dist, c) for c in cases for r in roads for k in speeds for s in _seeds(a.seeds)]
+    jobs = [(r, k, s, a.dist, c, a.acc_sampling) for c in cases for r in roads for k in speeds
+            for s in _seeds(a.seeds)]
     with ProcessPoolExecutor(a.workers) as pool:
         res = list(pool.map(run, *zip(*jobs)))
-    print(f"through the FMUs, noise seeds {a.seeds} (means; IRI worst over seeds and segments)")
+    print(f"through the FMUs, noise seeds {a.seeds}, acc_sampling {a.acc_sampling} "
+          "(means; IRI worst over seeds and segments)")
     print("| plant | road | km/h | HP % | raw rms mm | std rms mm | rms err / rms std | 2σ coverage % | coverage range % | "
           "max err near event mm | IRI err mean % | IRI err worst % | mass err % | mass_std % |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
