@@ -337,30 +337,30 @@ class Slave:
             pass
 
 
-def build_trivial(tmp: Path) -> Path:
+def build_yardstick(tmp: Path, model: str, source: str) -> Path:
+    """Build the pythonfmu FMU of class ``model`` from ``source`` into ``tmp``."""
     from pythonfmu.builder import FmuBuilder
 
-    src = tmp / "trivial_src"
+    src = tmp / f"{model}_src"
     src.mkdir()
-    script = src / "BenchIdentityYardstick.py"  # unique module name: FMUs share one module cache
-    script.write_text(TRIVIAL_FMU)
-    return Path(FmuBuilder.build_FMU(script, dest=tmp / "trivial_dist"))
+    script = src / f"{model}.py"  # unique module names: FMUs share one module cache
+    script.write_text(source)
+    return Path(FmuBuilder.build_FMU(script, dest=tmp / f"{model}_dist"))
+
+
+def build_trivial(tmp: Path) -> Path:
+    return build_yardstick(tmp, "BenchIdentityYardstick", TRIVIAL_FMU)
 
 
 def build_shape(tmp: Path) -> Path:
     """The shape yardstick (SHAPE_FMU) with the estimator's variable names from the contract."""
-    from pythonfmu.builder import FmuBuilder
-
     from suspension_estimation.suspension_fmi.contract import SUSPENSION_ESTIMATOR
 
     def names(causality, kind):
         return tuple(v.name for v in SUSPENSION_ESTIMATOR if v.causality == causality and v.type == kind)
 
-    src = tmp / "shape_src"
-    src.mkdir()
-    script = src / "BenchShapeYardstick.py"
-    script.write_text(SHAPE_FMU % (names("input", "Real"), names("output", "Real"), names("output", "Integer")))
-    return Path(FmuBuilder.build_FMU(script, dest=tmp / "shape_dist"))
+    return build_yardstick(tmp, "BenchShapeYardstick",
+                           SHAPE_FMU % (names("input", "Real"), names("output", "Real"), names("output", "Integer")))
 
 
 def round_loop(s: Slave, in_vrs: list[int], rows: list) -> None:
@@ -675,7 +675,8 @@ def analyse(res: dict) -> None:
         "  of which the estimator's variables themselves (shape yardstick − trivial)": shape - triv,
         "harness master (loop − 3 FMU rounds: recording, wiring, bookkeeping)": L - rounds,
     }
-    # the entries above (but the indented one, a part of the one before) add up to the loop; the ratio of the two 'overheads' is what to cut
+    # the entries above (but the indented one, a part of the one before) add up to the loop;
+    # the ratio of the two 'overheads' is what to cut
     for r in res["ratios"].values():
         r["met"] = None if r["met"] is None else bool(r["met"])
 
