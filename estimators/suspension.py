@@ -415,7 +415,7 @@ class SuspensionEstimator:
         key = (cls, round(math.log(max(m.speed, 0.1)) / math.log(1.05)), m.h)
         if hon is None or hon[2] != key:
             K, P = sol
-            veh = self.cfg.vehicle(self.m_model)
+            veh = m.vehicle  # the model's own, with the identified damping for the anchor
             rm = self.cfg.tuning.road_model
             q, ref = 0.0, None
             if not self.cfg.tuning.start_offset:  # against the reference's truth (see start_offset)
@@ -925,7 +925,14 @@ class SuspensionEstimator:
         # started on (or stood on at a re-initialisation), z_0, adds -z_0 g(t) to the raw error
         # (model.start_level_std), z_0 ~ the road-height std of the assumed class. The KF
         # estimates z_0 from its own road estimate (start_offset.py) and adds g(t) z_0^.
-        var = max(float((self.anchor if self.anchor_trusted else kf).P[IZR, IZR]), 0.0) * self._honest_ratio()
+        ratio = self._honest_ratio()
+        if self._nonlinear:
+            # the ratio takes the force errors as zero (the vehicle the model's); the anchor was
+            # dropped because they are not, and the filter's own P, whose force-error states
+            # carry them, is the honest one (air-spring plant: 2-sigma coverage 0.83-0.92 -> see
+            # docs/robustness.md)
+            ratio = 1.0
+        var = max(float((self.anchor if self.anchor_trusted else kf).P[IZR, IZR]), 0.0) * ratio
         base_var = var
         t_rel = self.time - self._t_reset
         if self._from_rest:
