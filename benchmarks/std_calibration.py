@@ -1,12 +1,13 @@
 """Is ``road_height_std`` honest? The cores over many seeds, with and without the z_0 estimate.
 
     .venv/bin/python benchmarks/std_calibration.py [--classes 2,3,4] [--seeds 1-20] [--kmh 40] [--workers 2]
+        [--duration 70]
     .venv/bin/python benchmarks/std_calibration.py --grid 30 [--classes 2,3,4] [--seeds 1]
 
 For each ISO class and seed: the paper's vehicle at 410 kg, its sensor noise, 40 km/h, 1 ms,
 the plant settled on the road at t = 0 (as ``QuarterCar.fmu`` starts), the default road
 estimator at the right mass with the online class (``mass_estimator`` 0, ``road_class`` 0),
-70 s; once as the default (``start_offset`` False: the estimate relative to the start level,
+70 s (``--duration``: longer runs add windows up to 200 s); once as the default (``start_offset`` False: the estimate relative to the start level,
 scored against ``harness.metrics.reference_road``) and once with the start-height estimate
 (``start_offset`` True: the absolute height of the zero-mean ISO road, scored against the road
 itself). It prints, per class and time
@@ -24,6 +25,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 WINDOWS = ((10, 20), (20, 30), (30, 45), (45, 70), (10, 70))
+LONG_WINDOWS = ((70, 100), (100, 150), (150, 200))  # s, with --duration beyond 70 s
 T, H, SPEED = 70.0, 1e-3, 40 / 3.6
 
 
@@ -38,8 +40,14 @@ def drive(road, car, est, speed: float, n: int) -> tuple[np.ndarray, np.ndarray,
     return e, r, s
 
 
-def run(cls: int, seed: int, start_offset: bool, speed: float = SPEED) -> dict:
-    """One 70 s core run: per-window sums of squared error and std, and the run's scores."""
+def windows(duration: float) -> tuple[tuple[float, float], ...]:
+    """The scoring windows (s) of a run of ``duration`` s."""
+    return WINDOWS + tuple(w for w in LONG_WINDOWS if w[1] <= duration + 1e-9)
+
+
+def run(cls: int, seed: int, start_offset: bool, speed: float = SPEED, duration: float = T) -> dict:
+    """One core run of ``duration`` s: per-window sums of squared error and std, and the run's
+    scores (those over 10-70 s)."""
     from suspension_estimation.estimators import SuspensionEstimator
     from suspension_estimation.harness.metrics import reference_road, road_scores
     from suspension_estimation.plant import iso8608
@@ -51,14 +59,15 @@ def run(cls: int, seed: int, start_offset: bool, speed: float = SPEED) -> dict:
     car = QuarterCar(DEFAULT_VEHICLE, SensorNoise(0.02, 0.2, 1e-4), noise_seed=1000 + seed)
     car.settle(road.height(0.0))
     est = SuspensionEstimator(mass_estimator=0, road_class=0, start_offset=start_offset)
-    n = int(round(T / H))
+    n = int(round(duration / H))
     e, r, s = drive(road, car, est, speed, n)
     t = np.arange(1, n + 1) * H
-    sc = road_scores(t, e, r, s, reference=not start_offset)
+    early = t <= T
+    sc = road_scores(t[early], e[early], r[early], s[early], reference=not start_offset)
     if not start_offset:  # the default: against what the estimate estimates (metrics.reference_road)
         r = reference_road(t, r)
     win = {w: (float(np.mean((e - r)[(t >= w[0]) & (t < w[1])] ** 2)),
-               float(np.mean(s[(t >= w[0]) & (t < w[1])] ** 2))) for w in WINDOWS}
+               float(np.mean(s[(t >= w[0]) & (t < w[1])] ** 2))) for w in windows(duration)}
     return {"cls": cls, "seed": seed, "on": start_offset, "win": win,
             "coverage": 100 * sc["coverage_2sigma"], "raw": sc["err_std_raw_pct"]}
 
@@ -125,22 +134,25 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seeds", default="1-20", help="seed range (default 1-20)")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--kmh", type=float, default=3.6 * SPEED, help="speed in km/h (default 40)")
+    p.add_argument("--duration", type=float, default=T, help="s per run (default 70; up to 200 adds windows)")
     p.add_argument("--grid", type=float, default=0.0, metavar="SECONDS",
                    help="instead: the robustness grid's cases (harness/studies/robust.py), runs of this length")
     a = p.parse_args(argv)
     try:
         classes = [int(c) for c in a.classes.split(",")]
         seeds = _seeds(a.seeds)
-        if not classes or not all(1 <= c <= 8 for c in classes) or len(seeds) < 1 or a.workers < 1:
+        if (not classes or not all(1 <= c <= 8 for c in classes) or len(seeds) < 1 or a.workers < 1
+                or not T <= a.duration <= 1000.0):
             raise ValueError
     except ValueError:
-        print("std_calibration: --classes takes numbers 1-8, --seeds a range like 1-20, --workers >= 1",
+        print("std_calibration: --classes takes numbers 1-8, --seeds a range like 1-20, --workers >= 1, "
+              f"--duration {T:g}-1000 s",
               file=sys.stderr)
         return 2
     if a.grid > 10.0:
         grid(classes, seeds, a.grid, a.workers)
         return 0
-    jobs = [(c, s, on, a.kmh / 3.6) for c in classes for on in (False, True) for s in seeds]
+    jobs = [(c, s, on, a.kmh / 3.6, a.duration) for c in classes for on in (False, True) for s in seeds]
     with ProcessPoolExecutor(a.workers) as pool:
         res = list(pool.map(run, *zip(*jobs)))
     print(f"cores, {a.kmh:g} km/h, seeds {a.seeds}: rms raw error / rms road_height_std (ratio)")
@@ -148,7 +160,7 @@ def main(argv: list[str] | None = None) -> int:
         for on in (False, True):
             rows = [x for x in res if x["cls"] == c and x["on"] == on]
             cells = []
-            for w in WINDOWS:
+            for w in windows(a.duration):
                 e2 = np.mean([x["win"][w][0] for x in rows])
                 s2 = np.mean([x["win"][w][1] for x in rows])
                 cells.append(f"{w[0]}-{w[1]} s {1e3 * e2 ** 0.5:.2f}/{1e3 * s2 ** 0.5:.2f} mm ({(e2 / s2) ** 0.5:.3f})")
