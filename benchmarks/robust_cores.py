@@ -3,7 +3,7 @@ plant (air spring + asymmetric damper, plant/nonlinear_car.py) is measured so fa
 
     .venv/bin/python benchmarks/robust_cores.py [--classes C] [--speeds 40,80] [--seeds 1] [--seed0 1]
         [--duration 60] [--cases exact,c_s -30%,...,nonlinear] [--estimators "default;KF (0)"]
-        [--set '{"refilter_span": 4}']
+        [--set '{"refilter_span": 4}'] [--std-scales 1.1,1.2,1.3]
 
 Plant: plant.QuarterCar with the vehicle of each case of harness/studies/robust.py, or
 plant.NonlinearQuarterCar with the default air spring and damper ("nonlinear": the estimators
@@ -14,6 +14,9 @@ paper 003's observers (road_estimator 3 EKF, 5 UKF, mass_estimator 3 dual observ
 nonlinear case told the plant's maps (spring_model = damper_model = 1), else the nominal vehicle.
 Prints one markdown row per (class, speed, case, estimator): HP / raw road error std %, the raw
 error's rms (mm, with its mean), in-band gain, 2-sigma coverage, mean sprung-mass error % after the 10 s warm-up (means over seeds).
+With --std-scales, also the coverage of +-2 k road_height_std for each k, and the rms of the
+default's two force-error states over their stationary prior std sqrt(q v tau / 2) (fast, slow):
+how far a wrong suspension pushes them past what their model expects.
 """
 from __future__ import annotations
 
@@ -70,12 +73,23 @@ def drive(case: str, cls: int, speed: float, duration: float, seed: int):
     return np.arange(1, n + 1) * H, meas, zr, told
 
 
-def score(t, meas, zr, told, speed: float, **kw) -> dict:
+def score(t, meas, zr, told, speed: float, scales: tuple = (), **kw) -> dict:
     est = SuspensionEstimator(m_s_nominal=told.m_s, m_u=told.m_u, k_s=told.k_s, k_t=told.k_t, c_s=told.c_s, **kw)
-    out = np.array([[o["road_height_est"], o["road_height_std"], o["sprung_mass_est"]]
-                    for o in (est.step(z[0], z[1], z[2], speed, H) for z in meas)])
+    nf = est._force_states
+    rows = []
+    for z in meas:
+        o = est.step(z[0], z[1], z[2], speed, H)
+        rows.append([o["road_height_est"], o["road_height_std"], o["sprung_mass_est"],
+                     *est.kf.x[est.n_states - nf:est.n_states]])
+    out, late = np.array(rows), t >= WARMUP
     s = road_scores(t, out[:, 0], zr, out[:, 1], warmup=WARMUP)
-    s["mass_err_pct"] = float(100 * (np.mean(out[t >= WARMUP, 2]) / DEFAULT_VEHICLE.m_s - 1))
+    s["mass_err_pct"] = float(100 * (np.mean(out[late, 2]) / DEFAULT_VEHICLE.m_s - 1))
+    for k in scales:
+        s[f"cov x{k:g}"] = road_scores(t, out[:, 0], zr, k * out[:, 1], warmup=WARMUP)["coverage_2sigma"]
+    if scales and nf == 2:
+        n = est._noise
+        prior = np.sqrt([n.q_f * speed * n.tau_f / 2, n.q_b * speed * n.tau_b / 2])
+        s["fe_fast"], s["fe_slow"] = np.sqrt(np.mean(out[late, 3:] ** 2, axis=0)) / prior
     return s
 
 
@@ -89,6 +103,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--estimators", default=";".join(ESTIMATORS), help="names of ESTIMATORS, separated by ';'")
     ap.add_argument("--seed0", type=int, default=1, help="first seed (default 1)")
     ap.add_argument("--set", default="{}", help='extra estimator keywords as JSON, e.g. \'{"refilter_span": 4}\'')
+    ap.add_argument("--std-scales", default="", help="factors k: also print the coverage of +-2 k road_height_std")
     a = ap.parse_args(argv)
     try:
         extra = json.loads(a.set)
@@ -96,6 +111,13 @@ def main(argv: list[str] | None = None) -> int:
         extra = None
     if not isinstance(extra, dict):
         print(f"error: --set takes a JSON object, not {a.set!r}", file=sys.stderr)
+        return 1
+    try:
+        scales = tuple(float(v) for v in a.std_scales.split(",") if v.strip())
+    except ValueError:
+        scales = (0.0,)
+    if any(not k > 0 for k in scales):
+        print(f"error: --std-scales takes positive factors separated by ',', not {a.std_scales!r}", file=sys.stderr)
         return 1
     cases = [c.strip() for c in a.cases.split(",")]
     chosen = {n.strip(): ESTIMATORS.get(n.strip()) for n in a.estimators.split(";")}
@@ -106,8 +128,9 @@ def main(argv: list[str] | None = None) -> int:
     if unknown or a.duration <= WARMUP or a.seeds < 1:
         print(f"error: unknown cases {unknown}, or --duration <= {WARMUP} s, or --seeds < 1", file=sys.stderr)
         return 1
-    print("| ISO | km/h | plant | estimator | HP % | raw % | raw rms mm | gain | cov | mass % |\n"
-          "|---|---|---|---|---|---|---|---|---|---|")
+    extra_cols = [f"cov x{k:g}" for k in scales] + (["force err / prior (fast, slow)"] if scales else [])
+    print("| ISO | km/h | plant | estimator | HP % | raw % | raw rms mm | gain | cov | mass % |"
+          + "".join(f" {c} |" for c in extra_cols) + "\n|---|---|---|---|---|---|---|---|---|---|" + "---|" * len(extra_cols))
     for letter in a.classes.split(","):
         cls = "ABCDEFGH".index(letter.strip().upper()) + 1
         for kmh in (float(v) for v in a.speeds.split(",")):
@@ -117,12 +140,15 @@ def main(argv: list[str] | None = None) -> int:
                     t, meas, zr, told = drive(case, cls, kmh / 3.6, a.duration, seed)
                     for name, kw in chosen.items():
                         maps = MAPS if case == "nonlinear" and name in OBSERVERS else {}
-                        rows[name].append(score(t, meas, zr, told, kmh / 3.6, **{**kw, **extra}, **maps))
+                        rows[name].append(score(t, meas, zr, told, kmh / 3.6, scales, **{**kw, **extra}, **maps))
                 for name, r in rows.items():
                     m = {k: np.mean([x[k] for x in r]) for k in r[0]}
+                    more = "".join(f" {m[f'cov x{k:g}']:.3f} |" for k in scales)
+                    if scales:
+                        more += f" {m['fe_fast']:.2f}, {m['fe_slow']:.2f} |" if "fe_fast" in m else " |"
                     print(f"| {letter.strip().upper()} | {kmh:g} | {case} | {name} | {m['err_std_hp_pct']:.2f} | "
                           f"{m['err_std_raw_pct']:.1f} | {m['rmse_raw_mm']:.1f} | {m['gain_hp']:.3f} | {m['coverage_2sigma']:.3f} | "
-                          f"{m['mass_err_pct']:+.2f} |", flush=True)
+                          f"{m['mass_err_pct']:+.2f} |{more}", flush=True)
     return 0
 
 

@@ -24,3 +24,25 @@ def test_help(script, capsys):
         mod.main(["--help"])
     assert e.value.code == 0
     assert "usage:" in capsys.readouterr().out
+
+
+def _load(name: str):
+    script = ROOT / "benchmarks" / name
+    spec = importlib.util.spec_from_file_location(f"bench_cli_{script.stem}", script)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_robust_cores_std_scales(capsys):
+    """--std-scales: the coverage of +-2 k std at k = 1 is the cov column, and it cannot fall as k grows."""
+    mod = _load("robust_cores.py")
+    assert mod.main(["--classes", "C", "--speeds", "40", "--cases", "exact", "--duration", "14",
+                     "--estimators", "default", "--std-scales", "0.3,1,3"]) == 0
+    row = [c.strip() for c in capsys.readouterr().out.splitlines()[-1].strip("|").split("|")]
+    cov, k03, k1, k3 = float(row[8]), float(row[10]), float(row[11]), float(row[12])
+    assert k1 == cov and k03 <= k1 <= k3 and k03 < k3
+    fast, slow = (float(v) for v in row[13].split(","))
+    assert 0 < fast < 1 and 0 < slow < 1  # the exact vehicle: the force-error states inside their prior
+    assert mod.main(["--std-scales", "0,1"]) == 1
+    assert "--std-scales" in capsys.readouterr().err
