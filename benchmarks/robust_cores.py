@@ -3,7 +3,7 @@ plant (air spring + asymmetric damper, plant/nonlinear_car.py) is measured so fa
 
     .venv/bin/python benchmarks/robust_cores.py [--classes C] [--speeds 40,80] [--seeds 1] [--seed0 1]
         [--duration 60] [--cases exact,c_s -30%,...,nonlinear] [--estimators "default;KF (0)"]
-        [--set '{"refilter_span": 4}'] [--std-scales 1.1,1.2,1.3]
+        [--set '{"refilter_span": 4}'] [--std-scales 1.1,1.2,1.3] [--spread]
 
 Plant: plant.QuarterCar with the vehicle of each case of harness/studies/robust.py, or
 plant.NonlinearQuarterCar with the default air spring and damper ("nonlinear": the estimators
@@ -17,6 +17,10 @@ error's rms (mm, with its mean), in-band gain, 2-sigma coverage, mean sprung-mas
 With --std-scales, also the coverage of +-2 k road_height_std for each k, and the rms of the
 default's two force-error states over their stationary prior std sqrt(q v tau / 2) (fast, slow):
 how far a wrong suspension pushes them past what their model expects.
+With --spread, also the 2-sigma coverage of the single seeds (lowest, highest) and the mean's
+95 % interval, mean +- 2 standard errors over the seeds: each seed's coverage is one number
+(its error wanders slowly, so the steps of one run are not independent samples), and a cell's
+coverage is scored by as many samples as it has seeds.
 """
 from __future__ import annotations
 
@@ -104,6 +108,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed0", type=int, default=1, help="first seed (default 1)")
     ap.add_argument("--set", default="{}", help='extra estimator keywords as JSON, e.g. \'{"refilter_span": 4}\'')
     ap.add_argument("--std-scales", default="", help="factors k: also print the coverage of +-2 k road_height_std")
+    ap.add_argument("--spread", action="store_true",
+                    help="also the coverage's seed range and the mean +- 2 standard errors over seeds")
     a = ap.parse_args(argv)
     try:
         extra = json.loads(a.set)
@@ -128,7 +134,8 @@ def main(argv: list[str] | None = None) -> int:
     if unknown or a.duration <= WARMUP or a.seeds < 1:
         print(f"error: unknown cases {unknown}, or --duration <= {WARMUP} s, or --seeds < 1", file=sys.stderr)
         return 1
-    extra_cols = [f"cov x{k:g}" for k in scales] + (["force err / prior (fast, slow)"] if scales else [])
+    extra_cols = ([f"cov x{k:g}" for k in scales] + (["force err / prior (fast, slow)"] if scales else [])
+                  + (["cov seeds (min-max)", "cov mean +- 2 SE"] if a.spread else []))
     print("| ISO | km/h | plant | estimator | HP % | raw % | raw rms mm | gain | cov | mass % |"
           + "".join(f" {c} |" for c in extra_cols) + "\n|---|---|---|---|---|---|---|---|---|---|" + "---|" * len(extra_cols))
     for letter in a.classes.split(","):
@@ -146,6 +153,10 @@ def main(argv: list[str] | None = None) -> int:
                     more = "".join(f" {m[f'cov x{k:g}']:.3f} |" for k in scales)
                     if scales:
                         more += f" {m['fe_fast']:.2f}, {m['fe_slow']:.2f} |" if "fe_fast" in m else " |"
+                    if a.spread:
+                        c = np.array([x["coverage_2sigma"] for x in r])
+                        se = c.std(ddof=1) / np.sqrt(c.size) if c.size > 1 else np.nan
+                        more += f" {c.min():.3f} to {c.max():.3f} | {c.mean() - 2 * se:.3f} to {c.mean() + 2 * se:.3f} |"
                     print(f"| {letter.strip().upper()} | {kmh:g} | {case} | {name} | {m['err_std_hp_pct']:.2f} | "
                           f"{m['err_std_raw_pct']:.1f} | {m['rmse_raw_mm']:.1f} | {m['gain_hp']:.3f} | {m['coverage_2sigma']:.3f} | "
                           f"{m['mass_err_pct']:+.2f} |{more}", flush=True)

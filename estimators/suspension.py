@@ -929,9 +929,8 @@ class SuspensionEstimator:
         if self._nonlinear:
             # the ratio takes the force errors as zero (the vehicle the model's); the anchor was
             # dropped because they are not, and the filter's own P, whose force-error states
-            # carry them, is the honest one (air-spring plant: 2-sigma coverage 0.83-0.92 -> see
-            # docs/robustness.md)
-            ratio = 1.0
+            # carry them, is right in rms but not in its tails (Tuning.nonlinear_std_factor)
+            ratio = cfg.tuning.nonlinear_std_factor ** 2
         var = max(float((self.anchor if self.anchor_trusted else kf).P[IZR, IZR]), 0.0) * ratio
         base_var = var
         t_rel = self.time - self._t_reset

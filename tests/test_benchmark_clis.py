@@ -46,3 +46,17 @@ def test_robust_cores_std_scales(capsys):
     assert 0 < fast < 1 and 0 < slow < 1  # the exact vehicle: the force-error states inside their prior
     assert mod.main(["--std-scales", "0,1"]) == 1
     assert "--std-scales" in capsys.readouterr().err
+
+
+def test_robust_cores_spread(capsys):
+    """--spread: the cell's coverage is the mean of its seeds', inside their range and at the
+    centre of the mean +- 2 standard errors."""
+    mod = _load("robust_cores.py")
+    assert mod.main(["--classes", "B", "--speeds", "40", "--cases", "c_s -30%", "--duration", "12",
+                     "--seeds", "2", "--estimators", "KF (0)", "--spread"]) == 0
+    row = [c.strip() for c in capsys.readouterr().out.splitlines()[-1].strip("|").split("|")]
+    cov = float(row[8])
+    lo, hi = (float(v) for v in row[10].split(" to "))
+    a, b = (float(v) for v in row[11].split(" to "))
+    assert lo <= cov <= hi and lo < hi  # the KF told the wrong damper: the seeds differ
+    assert a <= cov <= b and (a + b) / 2 == pytest.approx(cov, abs=1e-3)

@@ -146,6 +146,43 @@ def test_default_on_the_air_spring_plant_told_only_its_linearisation():
     assert np.mean(np.abs(e) <= 2 * std[first]) > 0.9
 
 
+def test_the_std_once_the_anchor_is_dropped_is_the_force_error_filters_times_the_factor():
+    """Tuning.nonlinear_std_factor scales road_height_std only where the anchor is dropped (the
+    air-spring plant), and never the estimate; on the linear plant it changes nothing."""
+    from suspension_estimation.plant.nonlinear_car import NonlinearQuarterCar
+    from suspension_estimation.plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_DAMPER
+
+    seed, n = 2, int(round(6.0 / H))
+    road = SyntheticRoad(iso8608.class_psd_n0(4), seed=seed)
+    car = NonlinearQuarterCar(NOMINAL, DEFAULT_AIR_SPRING, DEFAULT_DAMPER, noise=SensorNoise(), noise_seed=100 + seed)
+    meas = np.empty((n, 3))
+    for k in range(n):
+        car.step(road.height(SPEED * k * H), H)
+        meas[k] = car.measured
+    lin = car.linearisation()
+    told = dict(m_u=lin.m_u, k_s=lin.k_s, k_t=lin.k_t, c_s=lin.c_s)
+    runs = {}
+    for f in (1.0, 1.2, 3.0):
+        est = SuspensionEstimator(nonlinear_std_factor=f, **told)
+        out = np.array([[o["road_height_est"], o["road_height_std"]]
+                        for o in (est.step(z[0], z[1], z[2], SPEED, H) for z in meas)])
+        assert not est.anchor_trusted  # dropped at about 2.2 s
+        runs[f] = out
+    np.testing.assert_array_equal(runs[1.2][:, 0], runs[1.0][:, 0])
+    late = slice(n - 1000, n)
+    np.testing.assert_allclose(runs[1.2][late, 1], 1.2 * runs[1.0][late, 1], rtol=1e-12)
+    np.testing.assert_allclose(runs[3.0][late, 1], 3.0 * runs[1.0][late, 1], rtol=1e-12)
+    assert runs[1.0][-1, 1] == pytest.approx(np.sqrt(est.kf.P[4, 4]), rel=1e-12)  # the same P in every run
+    assert np.all(runs[1.2][late, 1] > 0.01)  # m: the force-error filter's loose common mode
+
+    t, meas, zr = drive(NOMINAL, T=6.0)
+    _, std1, _ = estimate(meas, nonlinear_std_factor=1.0)
+    _, std3, _ = estimate(meas, nonlinear_std_factor=3.0)
+    np.testing.assert_array_equal(std1, std3)
+    from suspension_estimation.estimators.tuning import Tuning
+    assert any("nonlinear_std_factor" in m for m in Tuning(nonlinear_std_factor=0.5).problems())
+
+
 @pytest.mark.parametrize("spring", [False, True])
 def test_mass_regression_fits_an_asymmetric_damper_and_an_air_spring(spring):
     """With the damping estimated, the mass regression also fits the damper's asymmetry and
