@@ -361,3 +361,56 @@ def test_a_grade_from_the_start_with_the_damper_off(factors, seed):
     assert 1e3 * np.sqrt(np.mean(e ** 2)) < 12.0
     assert np.mean(np.abs(e) <= 2 * std[keep]) > 0.9
     assert est.anchor_trusted
+
+
+def _scaled_twin(case):
+    """Two plants and roads that give the same three signals (docs/robustness.md, "Why no
+    estimator can meet both targets there"): (vehicle, road, twin vehicle, twin road)."""
+    road = SyntheticRoad(iso8608.class_psd_n0(3), seed=2)
+    r = np.array([road.height(SPEED * k * H) for k in range(int(round(14.0 / H)))])
+    if case == "k_t":  # k_t x 1.1 on the road z_u + (z_r - z_u) / 1.1
+        lam, base = 1.1, NOMINAL
+        twin = base.with_(k_t=lam * base.k_t)
+    else:  # m_s, k_s, c_s x 1/0.85 on the road z_r + (lam - 1) m_s a_s / k_t
+        lam, base = 1 / 0.85, NOMINAL.with_(k_s=0.85 * NOMINAL.k_s)
+        twin = base.with_(m_s=lam * base.m_s, k_s=lam * base.k_s, c_s=lam * base.c_s)
+    car = QuarterCar(base, SensorNoise(), noise_seed=102)
+    z_u, a_s = np.zeros(len(r) + 1), np.zeros(len(r) + 1)
+    for k, zr in enumerate(r):
+        car.step(zr, H)
+        z_u[k + 1], a_s[k + 1] = car.x[2], car.acc_true[0]
+    mid = lambda s: 0.5 * (s[:-1] + s[1:])  # noqa: E731  (the road is held over each step)
+    if case == "k_t":
+        r_twin = mid(z_u) + (r - mid(z_u)) / lam
+    else:
+        r_twin = r + (lam - 1) * base.m_s * mid(a_s) / base.k_t
+    return base, r, twin, r_twin
+
+
+@pytest.mark.parametrize("case", ["k_t", "k_s"])
+def test_a_wrong_tyre_or_spring_scale_gives_the_same_signals(case):
+    """The identifiability floor: the plant with k_t x 1.1 (or m_s, k_s, c_s x 1/0.85) on a road
+    that differs by 10 % of the tyre deflection (17.6 % of m_s a_s / k_t) gives the same sensor
+    signals, so any estimator gives the same road and mass for both, while the true roads differ
+    by about the floor's term (3-4 % of the HP road) and, for k_s, the true masses by 17.6 %."""
+    base, r, twin, r_twin = _scaled_twin(case)
+    runs = []
+    for veh, road in ((base, r), (twin, r_twin)):
+        car = QuarterCar(veh, SensorNoise(), noise_seed=102)
+        meas = np.empty((len(road), 3))
+        for k, zr in enumerate(road):
+            car.step(zr, H)
+            meas[k] = car.measured
+        runs.append(meas)
+    noise = SensorNoise()
+    diff = np.std(runs[0] - runs[1], axis=0) / (noise.acc_sprung, noise.acc_unsprung, noise.deflection)
+    assert np.all(diff < 0.3), diff  # measured 0.003 / 0.18-0.22 / 0.002 of the noise std
+    (e0, _, m0), (e1, _, m1) = estimate(runs[0]), estimate(runs[1])
+    cut = int(round(WARMUP / H))
+    hp = lambda s: np.std(highpass(s, H)[cut:])  # noqa: E731
+    true_gap, est_gap = hp(r - r_twin) / hp(r), hp(e0 - e1) / hp(r)
+    assert 0.02 < true_gap < 0.06, true_gap  # measured 0.030 (k_t), 0.040 (k_s)
+    assert est_gap < 0.2 * true_gap, (est_gap, true_gap)  # measured 0.0015, 0.0013
+    assert abs(m0[-1] / m1[-1] - 1) < 0.01  # the same mass estimate for both
+    if case == "k_s":  # so it is at least 7 % off for one of two masses 17.6 % apart
+        assert max(abs(m0[-1] / base.m_s - 1), abs(m0[-1] / twin.m_s - 1)) > 0.07
