@@ -448,7 +448,7 @@ class SuspensionEstimator:
             K, P = kf.stationary_solution
             m = max(1, round(0.05 / h))
             dt = m * h
-            self._buildup = (dt, error_buildup(kf.F, kf.H, K, P, IZR, m, int(400.0 / dt)))
+            self._buildup = (dt, error_buildup(kf.F, kf.H, K, kf.Q, kf.R, P, IZR, m, int(400.0 / dt)))
         dt, d = self._buildup
         u = t / dt
         j = int(u)
