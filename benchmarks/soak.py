@@ -10,8 +10,8 @@ in memory, and checks
 
 - no divergence: every output finite at every step, no re-initialisation (``status`` = 2), and
   the estimator's covariance P at the end symmetric (|P - P^T| <= 1e-9 max|P|) and positive
-  definite (smallest eigenvalue > 0), read from the serialized FMU state (a pickled copy of the
-  core, see ``fmu_src/suspension_fmi/slave.py``);
+  definite (smallest eigenvalue > 0), read from the serialized FMU state (plain data, see
+  ``fmu_src/suspension_fmi/state.py``);
 - stable accuracy: the HP road error-STD % (``harness.metrics.road_scores``) of the last window
   (default the last 60 s) within 10 % (relative) of that of the first window after the warm-up
   (default 10 s to 70 s). Each window is scored like any run of the project: its samples from
@@ -31,9 +31,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")  # before numpy is imported, here or in the FMUs
 
 import argparse  # noqa: E402
-import base64  # noqa: E402
 import json  # noqa: E402
-import pickle  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -43,9 +41,11 @@ sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
 
+from suspension_estimation.estimators.state_classes import STATE_CLASSES  # noqa: E402
 from suspension_estimation.harness.cosim import System  # noqa: E402
 from suspension_estimation.harness.metrics import road_scores  # noqa: E402
 from suspension_estimation.harness.streaming import Stepper  # noqa: E402
+from suspension_estimation.suspension_fmi import state as fmu_state  # noqa: E402
 
 MARGIN = 5.0  # s of samples before a scored window, for the high-pass edge transient
 CHUNK = 1.0  # s simulated per Stepper.advance call
@@ -73,8 +73,7 @@ def estimator_covariance(sim: Stepper, instance: str = "e") -> np.ndarray:
         blob = fmu.serializeFMUstate(state)
     finally:
         fmu.freeFMUstate(state)
-    snapshot = pickle.loads(base64.b64decode(json.loads(blob.decode("utf-8"))["pickle"]))
-    return np.array(snapshot["core"].kf.P, dtype=float)
+    return np.array(fmu_state.load(bytes(blob), STATE_CLASSES)["core"].kf.P, dtype=float)
 
 
 def _windows(duration: float, warmup: float, window: float) -> list[tuple[float, float]]:

@@ -28,7 +28,8 @@ As codes of the SuspensionEstimator (estimators/interface.py; the end of this mo
 road_estimator 3 = the EKF, 5 = the UKF, mass_estimator 3 = the dual observer (with road_estimator
 3 or 5 as its state filter). They are told the nonlinear maps by ``spring_model``,
 ``damper_model`` and the plant's parameter names and units (air_area, ..., damper_c_rebound, ...);
-with both models 0 they run on the linear k_s, c_s. Every object here pickles (the FMU state).
+with both models 0 they run on the linear k_s, c_s. Every object here holds data only (no
+stored function), so that the FMU state saves it (suspension_fmi/state.py).
 """
 from __future__ import annotations
 
@@ -259,7 +260,7 @@ def _start_covariance(lin: DiscreteModel, R: np.ndarray) -> np.ndarray:
 
 class _FilterpyEKF(ExtendedKalmanFilter):
     """filterpy's EKF whose prediction is the model's RK4 step (a method, not a stored lambda:
-    the FMU state pickles the filter)."""
+    the FMU state saves the filter as data)."""
 
     def __init__(self, model: NonlinearModel, h: float, m_s: float):
         super().__init__(dim_x=model.n, dim_z=3)

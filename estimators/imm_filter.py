@@ -78,6 +78,7 @@ class IMMRoad(RoadFilter):
         self.gd = None
         self.damping_rebuilds = 0
         self._win: np.ndarray | None = None  # the last masses of the window (code 2)
+        self._win_k, self._win_sum = 0, 0.0  # samples into it, and their sum
         self.given_class = 0  # the composer's online class (set_road_class), 0 = none yet
 
     def set_road_class(self, road_class: int) -> None:

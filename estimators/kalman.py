@@ -106,11 +106,16 @@ def error_buildup(F: np.ndarray, H: np.ndarray, K: np.ndarray, Q: np.ndarray, R:
     out = [1.0]
     if not p > 0:
         return np.array(out)
-    B = np.eye(n)
-    S_m = np.zeros((n, n))
-    for _ in range(int(m)):
-        S_m = A @ S_m @ A.T + W
-        B = A @ B
+    # S_m and B = A^m by binary powers: S_(a+b) = A^b S_a A'^b + S_b, O(log m) products
+    B, S_m = np.eye(n), np.zeros((n, n))
+    P2, S2 = A, W  # A^(2^j) and S_(2^j)
+    k = int(m)
+    while k:
+        if k & 1:
+            B, S_m = P2 @ B, P2 @ S_m @ P2.T + S2
+        k >>= 1
+        if k:
+            P2, S2 = P2 @ P2, P2 @ S2 @ P2.T + S2
     X = np.zeros((n, n))
     for _ in range(int(n_max)):
         X = B @ X @ B.T + S_m
@@ -354,6 +359,7 @@ class MMEKF(LinearKF):
         super().__init__(dim_x, dim_z, **kw)
         self.W = np.atleast_2d(float(W)) if np.ndim(W) == 0 else np.asarray(W, float)
         self.G = np.zeros((dim_x, 1))
+        self._M_mme: np.ndarray | None = None  # the frozen step's matrix (_freeze)
         self.G[1, 0] = 1.0
         # direct feed-through of d into the measured body acceleration: present for a point
         # sample at the end of the step; for an acceleration averaged over the step

@@ -141,6 +141,7 @@ class StateVariableFilter:
                            [-wc ** 2, -wc ** 2, -2 * zeta * wc]])
         self.B = np.array([wh, 0.0, wc ** 2])
         self._h = None
+        self.Ad = self.Bd = None  # the discretisation at step _h
 
     def discretise(self, h: float) -> tuple[np.ndarray, np.ndarray]:
         if self._h != h:
@@ -227,6 +228,7 @@ class MassEstimator:
         self.xr = (0.0, 0.0, 0.0)  # states of the rate filter on d: x2 = d' (m/s), band-limited
         self.xe = [(0.0, 0.0, 0.0)] * len(TERMS)  # F states on each extra term (estimate_damping)
         self._svf_h = None
+        self._svf_ad = self._svf_bd = self._rate_ad = self._rate_bd = None  # at step _svf_h
         # Initial covariance: a +-100 % prior on m (and c) at unit regressor scale; the
         # regressor's own size (F[a_s]^2 ~ 0.1..10) makes this prior weak within ~0.1 s.
         theta0, F0 = [m_nominal], np.diag([m_nominal ** 2])

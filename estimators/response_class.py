@@ -222,6 +222,7 @@ class ResponseClassifier:
         self._sig = np.array([i for i, _, _ in feats])
         self._bands = [(lo, hi) for _, lo, hi in feats]
         self._dt = None
+        self._b0 = self._b1 = self._b2 = self._a1 = self._a2 = None  # band filters at step _dt
         self._s1 = np.zeros(len(feats))
         self._s2 = np.zeros(len(feats))
         self._past = deque(maxlen=int(self.model.get("blocks", 1)))  # (sums of squares, samples, sum of speed)

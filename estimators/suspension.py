@@ -141,6 +141,7 @@ class Blend:
     def __init__(self, hz: float):
         self.hz = float(hz)
         self._h = None
+        self._b = self._a = None  # the filter's coefficients at step _h
         self.reset()
 
     def reset(self) -> None:
@@ -330,6 +331,7 @@ class SuspensionEstimator:
         self.m_model = float(cfg.m_s_nominal)
         self.c_model = float(cfg.c_s)  # damping of the anchor filter's model (identified)
         self.time = 0.0
+        self._h: float | None = None  # s, the step of the last sample
         self._speed_last = 0.0  # m/s, the last finite speed (composed estimators)
         self.distance = 0.0
         self._rejected_time = 0.0
@@ -931,7 +933,10 @@ class SuspensionEstimator:
             # dropped because they are not, and the filter's own P, whose force-error states
             # carry them, is right in rms but not in its tails (Tuning.nonlinear_std_factor)
             ratio = cfg.tuning.nonlinear_std_factor ** 2
-        var = max(float((self.anchor if self.anchor_trusted else kf).P[IZR, IZR]), 0.0) * ratio
+        p_zr = float((self.anchor if self.anchor_trusted else kf).P[IZR, IZR])
+        # a covariance that rounding has taken to 0 or below (or past the floats) claims nothing:
+        # an infinite std, never a small one (seen on a 1 kg wheel damped at 1e5 N.s/m)
+        var = p_zr * ratio if p_zr > 0.0 else math.inf
         base_var = var
         t_rel = self.time - self._t_reset
         if self._from_rest:
@@ -1042,7 +1047,7 @@ class SuspensionEstimator:
         out = self.outputs
         out["road_height_est"] = x[IZR]
         out["road_velocity_est"] = x[IVR]
-        out["road_height_std"] = math.sqrt(var) if var >= 0.0 else math.nan
+        out["road_height_std"] = math.sqrt(var) if var > 0.0 else math.inf  # see step
         out["z_s_est"], out["v_s_est"], out["z_u_est"], out["v_u_est"] = x[IZS], x[IVS], x[IZU], x[IVU]
         out["susp_deflection_est"] = x[IZS] - x[IZU]
         out["tire_deflection_est"] = x[IZU] - x[IZR]

@@ -369,6 +369,7 @@ class VBRoadFilter(RoadFilter):
         self.road_variance = 0.0
         self._x = None
         self.P = None
+        self._P0 = None  # the stationary covariance the filter restarts from
         self.x = [0.0] * 6
         self._restart_noise()
 

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from suspension_estimation.plant.nonlinear_car import NonlinearQuarterCar
 from suspension_estimation.plant.quarter_car import QuarterCar as Plant, SensorNoise
+from suspension_estimation.plant.state_classes import QUARTER_CAR_STATE
 from suspension_estimation.plant.suspension_forces import AirSpring, BumpStops, PiecewiseDamper, in_contact
 from suspension_estimation.plant.vehicle import Vehicle
 from suspension_estimation.suspension_fmi.slave import ContractSlave
@@ -11,6 +12,7 @@ from suspension_estimation.suspension_fmi.slave import ContractSlave
 class QuarterCar(ContractSlave):
     description = "Quarter-car plant: sprung and unsprung mass on a suspension and a tyre, measured with noise"
     state_attributes = ("plant",)
+    state_classes = QUARTER_CAR_STATE
 
     def _args(self, cls) -> dict:
         """The contract parameters named like the fields of the force law ``cls``."""

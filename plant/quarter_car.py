@@ -83,6 +83,7 @@ class QuarterCar:
         self.measured = (0.0, 0.0, 0.0)  # acc_sprung, acc_unsprung (m/s^2), deflection (m)
         self._key: tuple[float, float] | None = None
         self._A = self._B = self._Ad = self._Bd = None
+        self._rows: tuple | None = None  # rows 1 and 3 of A and B as floats (end-of-step accelerations)
         self._noise: list[list[float]] = []
         self._noise_i = 0
         self.discretisations = 0  # matrix exponentials computed (one per step size and mass)

@@ -103,7 +103,7 @@ class SyntheticRoad:
         self.length = math.inf
 
     def __reduce__(self):
-        # pickled by its parameters: the 16 MB of nodes are rebuilt (cached) on unpickling
+        # pickled (process pools) by its parameters: the 16 MB of nodes are rebuilt (cached)
         return SyntheticRoad, self._args
 
     def height(self, s: float) -> float:
@@ -120,6 +120,20 @@ class SyntheticRoad:
 PROFILE_END = {0: "stop", 1: "hold", 2: "loop"}
 
 
+def _pchip_slopes(s: np.ndarray, h: np.ndarray, block: int = 1 << 20) -> np.ndarray:
+    """PCHIP's slopes dh/ds at the nodes, ``block`` nodes at a time: a node's slope depends on its
+    neighbours only, so the same values as of the whole profile at once, in the memory of a block
+    (PchipInterpolator holds about 80 bytes a node while it works)."""
+    from scipy.interpolate import PchipInterpolator
+
+    out = np.empty(len(s))
+    for a in range(0, len(s), block):
+        b = min(a + block, len(s))
+        lo, hi = max(a - 2, 0), min(b + 2, len(s))  # two neighbours: an end node's slope takes three nodes
+        out[a:b] = PchipInterpolator(s[lo:hi], h[lo:hi]).derivative()(s[a:b])
+    return out
+
+
 class MeasuredRoad:
     """A measured profile: driving starts at its first distance; PCHIP between samples.
 
@@ -129,11 +143,9 @@ class MeasuredRoad:
     """
 
     def __init__(self, distance: np.ndarray, elevation: np.ndarray, name: str = "profile", profile_end: int = 0):
-        from scipy.interpolate import PchipInterpolator
-
         if profile_end not in PROFILE_END:
             raise ValueError(f"profile_end = {profile_end!r} is not one of {PROFILE_END}")
-        slope = PchipInterpolator(distance, elevation).derivative()(distance)
+        slope = _pchip_slopes(distance, elevation)
         self._curve = _Hermite(np.asarray(distance, float), np.asarray(elevation, float), slope)
         self.name = name
         self.length = float(distance[-1] - distance[0])

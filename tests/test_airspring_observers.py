@@ -1,15 +1,16 @@
 """Paper 003's observers (EKF, UKF, dual state + mass observer) on the nonlinear plant core."""
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
-
-import pickle
 
 from suspension_estimation.estimators import SuspensionEstimator
 from suspension_estimation.estimators.airspring_observers import (EKF, UKF, DualObserver, FilterpyUKF,
                                                                   NonlinearModel)
 from suspension_estimation.estimators.model import measurement_covariance
+from suspension_estimation.estimators.state_classes import STATE_CLASSES
 from suspension_estimation.harness.metrics import road_scores
 from suspension_estimation.plant import iso8608
 from suspension_estimation.plant.nonlinear_car import NonlinearQuarterCar
@@ -17,6 +18,7 @@ from suspension_estimation.plant.quarter_car import SensorNoise
 from suspension_estimation.plant.road import SyntheticRoad
 from suspension_estimation.plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_DAMPER
 from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE as V
+from suspension_estimation.suspension_fmi import state as fmu_state
 
 NOISE = SensorNoise()
 R = measurement_covariance(NOISE.acc_sprung, NOISE.acc_unsprung, NOISE.deflection)
@@ -133,15 +135,17 @@ def test_own_ukf_equals_filterpys_on_the_same_data(bias_q):
     assert worst < 1e-9, worst
 
 
-def test_filters_pickle_and_go_on_identically():
-    """The FMU state pickles the estimator: every filter must, and its copy must go on the same."""
+def test_filters_save_as_data_and_go_on_identically():
+    """The FMU state saves the estimator as plain data (suspension_fmi/state.py): every filter
+    must, and its copy must go on the same."""
     h = 1e-3
     t, meas, z = ride(h, 0.3)
     for f in (EKF(NL, h, R, V.m_s), UKF(NL, h, R, V.m_s), DualObserver(NL, h, R, 1.2 * V.m_s),
               DualObserver(NL, h, R, 1.2 * V.m_s, state=UKF)):
         for m in meas[:100]:
             f.step(m)
-        g = pickle.loads(pickle.dumps(f))
+        node = fmu_state.encode({}, None, {"f": f}, "SuspensionEstimator", fmu_state.table(STATE_CLASSES))
+        g = fmu_state.decode(json.loads(fmu_state.to_bytes(node))["core"], fmu_state.table(STATE_CLASSES))["f"]
         assert all(np.array_equal(f.step(m), g.step(m)) for m in meas[100:])
 
 

@@ -4,19 +4,19 @@ them as one step (plant.step_size): they discretise once and give what the harne
 exact constant step. Work is counted (discretisations in the FMU state), not timed."""
 from __future__ import annotations
 
-import base64
-import json
-import pickle
 import tempfile
 
 import numpy as np
 from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi2 import FMU2Slave
 
+from suspension_estimation.estimators.state_classes import STATE_CLASSES
 from suspension_estimation.estimators.suspension import SuspensionEstimator
 from suspension_estimation.harness.cosim import CoSimulation, LogSink, System
 from suspension_estimation.harness.ssp import read_ssp
+from suspension_estimation.suspension_fmi import state as fmu_state
 from suspension_estimation.plant.quarter_car import QuarterCar
+from suspension_estimation.plant.state_classes import QUARTER_CAR_STATE
 from suspension_estimation.plant.step_size import STEP_RTOL, same_step
 from suspension_estimation.plant.vehicle import Vehicle
 
@@ -47,14 +47,17 @@ def _road_and_plant(dist) -> np.ndarray:
         return sim.run(N * H, H)
 
 
-def _state(fmu: FMU2Slave) -> dict:
-    """The adapter's pickled snapshot from the serialized FMU state (variables and core)."""
+CLASSES = {"QuarterCar": QUARTER_CAR_STATE, "SuspensionEstimator": STATE_CLASSES}
+
+
+def _state(fmu: FMU2Slave, classes: tuple[type, ...]) -> dict:
+    """The variables and core objects of the serialized FMU state."""
     state = fmu.getFMUstate()
     try:
         blob = fmu.serializeFMUstate(state)
     finally:
         fmu.freeFMUstate(state)
-    return pickle.loads(base64.b64decode(json.loads(bytes(blob).decode("utf-8"))["pickle"]))
+    return fmu_state.load(bytes(blob), classes)
 
 
 def _simulate(path, inputs: dict[str, np.ndarray], outputs, start_values=None):
@@ -73,7 +76,7 @@ def _simulate(path, inputs: dict[str, np.ndarray], outputs, start_values=None):
         res = simulate_fmu(str(path), stop_time=N * H, step_size=H, output_interval=H, input=signal,
                            output=list(outputs), start_values=start_values or {}, fmu_instance=fmu)
         assert len(res) == N + 1, log.messages
-        return res, _state(fmu)
+        return res, _state(fmu, CLASSES[md.coSimulation.modelIdentifier])
     finally:
         fmu.terminate()
         fmu.freeInstance()

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 from ..plant import iso8608
 from ..plant.iri import SEGMENT_RANGE
+from ..plant.profile_formats import MAX_POINTS
 from ..plant.quarter_car import NOISE_STD_RANGES, SensorNoise
 from ..plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_BUMP_STOPS, DEFAULT_DAMPER, FORCE_RANGES
 from ..plant.vehicle import DEFAULT_VEHICLE, VEHICLE_RANGES
@@ -151,7 +152,9 @@ ISO_ROAD: tuple[Var, ...] = (
         _SEED),
     Var("profile_file", "parameter", "String", None, "",
         "optional measured profile that replaces the synthetic one: columns distance, elevation (CSV or whitespace), "
-        "ProVAL ERD text, or ASAM OpenCRG .crg (binary or ASCII); absolute elevations of any magnitude"),
+        "ProVAL ERD text, or ASAM OpenCRG .crg (binary or ASCII); absolute elevations of any magnitude; "
+        f"at most {MAX_POINTS / 1e6:g} million points. An absolute path, or a path relative to the FMU's "
+        "resources folder (a file shipped in the FMU); the working directory is not searched"),
     Var("profile_units", "parameter", "String", None, "",
         "units of profile_file: '' = from its header (else m), 'mm' = elevation unit, 'ft,in' = distance, "
         "elevation units; any of m, cm, mm, km, ft, in"),
@@ -298,6 +301,12 @@ CONTRACTS: dict[str, tuple[Var, ...]] = {
     "QuarterCar": QUARTER_CAR,
     "SuspensionEstimator": SUSPENSION_ESTIMATOR,
 }
+
+# The longest communication step (s) each FMU takes; a longer one is refused (fmi2Discard)
+# before anything moves. The estimator's ISO class from the response band-passes up to 32 Hz,
+# which a step must resolve (32 Hz < 1 / (2 h)): 100 Hz logging is the coarsest the design aims
+# at. The road integrates the IRI over every 250 mm it passes: 1 s at 100 m/s is 400 of them.
+MAX_STEP: dict[str, float] = {"ISORoad": 1.0, "QuarterCar": math.inf, "SuspensionEstimator": 0.015}
 
 
 def allowed_text(var: Var) -> str:

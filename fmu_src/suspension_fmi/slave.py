@@ -3,28 +3,31 @@
 pythonfmu turns an exception into fmi2Fatal and cannot return fmi2Error, so nothing here
 raises to the host: a bad parameter is logged (error status, naming the variable and its
 allowed range) when initialization ends, and every ``doStep`` afterwards returns fmi2Discard
-with the reason logged again; a bad input is refused the same way at the step.
+with the reason logged again; a bad input is refused the same way at the step. A call that
+pythonfmu can only answer with fmi2OK is refused by an error message and has no effect: a get
+or set of an unknown value reference or of the wrong type (a get returns NaN, 0, False or ""),
+a state that fails its checks (state.py), a state that cannot be saved.
 """
 from __future__ import annotations
 
-import base64
 import datetime
 import math
 import os
-import pickle
 import uuid
 from xml.etree.ElementTree import Element, SubElement, tostring
 
 from pythonfmu import Boolean, DefaultExperiment, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
-from . import quick_exit
-from .contract import CONTRACTS, DEPENDENCIES, UNITS, Var, problem
+from . import quick_exit, state as fmu_state
+from .contract import CONTRACTS, DEPENDENCIES, MAX_STEP, UNITS, Var, problem
 
 quick_exit.install()  # opt-in (SUSPENSION_FMU_QUICK_EXIT=1): see quick_exit.py
 
 _TYPES = {"Real": Real, "Integer": Integer, "Boolean": Boolean, "String": String}
 _ZERO = {"Real": 0.0, "Integer": 0, "Boolean": False, "String": ""}
+_REFUSED = {"Real": math.nan, "Integer": 0, "Boolean": False, "String": ""}  # what a refused get returns
+_PLAIN = {"Real": (int, float), "Integer": (int,), "Boolean": (bool,), "String": (str,)}
 
 
 class ContractSlave(Fmi2Slave):
@@ -39,8 +42,13 @@ class ContractSlave(Fmi2Slave):
     license = "MIT"
     # the step the FMUs are made for and tested at (s); any other step works
     default_experiment = DefaultExperiment(start_time=0.0, step_size=1e-3)
-    # attributes beyond the contract's variables that make up the FMU state (the cores)
+    # attributes beyond the contract's variables that make up the FMU state (the cores), and the
+    # only classes a saved state may hold objects of (state.py)
     state_attributes: tuple[str, ...] = ()
+    state_classes: tuple[type, ...] = ()
+    # state attributes that setup() rebuilds from the parameters alone (nothing of a run in
+    # them): not saved, rebuilt on restore
+    derived_attributes: tuple[str, ...] = ()
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -88,21 +96,27 @@ class ContractSlave(Fmi2Slave):
 
     # -- FMI --------------------------------------------------------------------------------
     # pythonfmu's accessors look up each variable object, check its type and call its getter
-    # lambda; these read the attribute directly (same values, same TypeError for a wrong type).
+    # lambda; these read the attribute directly. An unknown value reference or one of another
+    # type is refused with a logged error (pythonfmu would raise: fmi2Fatal).
     def _get(self, kind: str, cast, vrs: list[int]) -> list:
         names = self._names[kind]
         try:
             return [cast(getattr(self, names[vr])) for vr in vrs]
-        except KeyError as e:
-            raise TypeError(f"Variable with valueReference={e.args[0]} is not of type {kind}!") from None
+        except KeyError:
+            bad = [vr for vr in vrs if vr not in names]
+            self.log(f"get{kind}: value reference(s) {bad} are not {kind} variables of {type(self).__name__}",
+                     Fmi2Status.error)
+            return [cast(getattr(self, names[vr])) if vr in names else _REFUSED[kind] for vr in vrs]
 
     def _set(self, kind: str, vrs: list[int], values: list) -> None:
         names = self._names[kind]
+        bad = [vr for vr in vrs if vr not in names]
+        if bad:
+            self.log(f"set{kind}: value reference(s) {bad} are not {kind} variables of {type(self).__name__};"
+                     " nothing set", Fmi2Status.error)
+            return
         for vr, value in zip(vrs, values):
-            name = names.get(vr)
-            if name is None:
-                raise TypeError(f"Variable with valueReference={vr} is not of type {kind}!")
-            setattr(self, name, value)
+            setattr(self, names[vr], value)
 
     def get_real(self, vrs):
         return self._get("Real", float, vrs)
@@ -110,17 +124,30 @@ class ContractSlave(Fmi2Slave):
     def get_integer(self, vrs):
         return self._get("Integer", int, vrs)
 
+    def get_boolean(self, vrs):
+        return self._get("Boolean", bool, vrs)
+
+    def get_string(self, vrs):
+        return self._get("String", str, vrs)
+
     def set_real(self, vrs, values):
         self._set("Real", vrs, values)
 
     def set_integer(self, vrs, values):
         self._set("Integer", vrs, values)
 
+    def set_boolean(self, vrs, values):
+        self._set("Boolean", vrs, values)
+
+    def set_string(self, vrs, values):
+        self._set("String", vrs, values)
+
     def log(self, msg: str, status: Fmi2Status = Fmi2Status.ok, category: str | None = None, debug=None):
         # FMI 2.0 loggers take the message as a printf format: a literal % must be doubled
         super().log(msg.replace("%", "%%"), status, category)
 
     def exit_initialization_mode(self):
+        self._refusal = None
         problems = [msg for var in self.contract if var.causality == "parameter"
                     and (msg := problem(var, getattr(self, var.name))) is not None]
         problems += self.input_problems()
@@ -137,8 +164,13 @@ class ContractSlave(Fmi2Slave):
         if self._refusal is not None:
             self.log(f"{type(self).__name__} cannot step: {self._refusal}", Fmi2Status.error)
             return False
-        if not (step_size > 0 and math.isfinite(step_size)):
-            self.log(f"communication step size = {step_size!r} must be > 0", Fmi2Status.error)
+        longest = MAX_STEP[type(self).__name__]
+        if not 0 < step_size <= longest:
+            self.log(f"communication step size = {step_size!r} s is outside the allowed range (0, {longest:g}] s",
+                     Fmi2Status.error)
+            return False
+        if any(getattr(self, n, None) is None for n in self.state_attributes):
+            self.log(f"{type(self).__name__} cannot step before exitInitializationMode", Fmi2Status.error)
             return False
         problems = self.input_problems()
         if problems:
@@ -148,28 +180,106 @@ class ContractSlave(Fmi2Slave):
         try:
             self.step(current_time, step_size)
         except Exception as e:  # noqa: BLE001
+            # the core may have moved part way: no step more from it (never silent garbage)
+            self._refusal = (f"its core failed at t = {current_time:.6g} s ({e}); reset the instance or set a "
+                             "saved state")
             self.log(f"{type(self).__name__} at t = {current_time:.6g} s: {e}", Fmi2Status.error)
             return False
         return True
 
     # -- FMU state -------------------------------------------------------------------------
+    # A state is plain data (state.py), also in memory: fmi2GetFMUstate and fmi2SetFMUstate go
+    # through the same writing and checks as a serialized state, so every round trip tests them.
     def _get_fmu_state(self) -> dict:
         """Every variable and the whole core (filter x and P, RLS matrices, road position, plant
-        states, noise generator), deep-copied by pickling into a JSON-safe dict."""
-        snapshot = {v.name: getattr(self, v.name) for v in self.contract}
-        snapshot["_refusal"] = self._refusal
-        for name in self.state_attributes:
-            snapshot[name] = getattr(self, name, None)
-        blob = pickle.dumps(snapshot, protocol=pickle.HIGHEST_PROTOCOL)
-        return {"model": type(self).__name__, "pickle": base64.b64encode(blob).decode("ascii")}
+        states, noise generator) as plain data; ``{"invalid": reason}`` if it cannot be written."""
+        try:
+            return fmu_state.encode({v.name: getattr(self, v.name) for v in self.contract}, self._refusal,
+                                    {n: getattr(self, n, None) for n in self.state_attributes if n not in self.derived_attributes},
+                                    type(self).__name__,
+                                    fmu_state.table(self.state_classes))
+        except Exception as e:  # noqa: BLE001 - never raised into the host
+            self.log(f"{type(self).__name__}: the FMU state cannot be saved: {e}", Fmi2Status.error)
+            return {"invalid": f"saved by a {type(self).__name__} that could not write its state: {e}"}
 
     def _set_fmu_state(self, state: dict) -> None:
-        if state.get("model") != type(self).__name__:
-            self.log(f"FMU state of {state.get('model')!r} cannot be set on {type(self).__name__}",
-                     Fmi2Status.error)
+        try:
+            restore = self._checked_state(state)
+        except Exception as e:  # noqa: BLE001 - StateError names the field; anything else is a bad state too
+            self.log(f"{type(self).__name__} refuses the FMU state, nothing restored: {e}", Fmi2Status.error)
             return
-        for name, value in pickle.loads(base64.b64decode(state["pickle"])).items():
-            setattr(self, name, value)
+        self.__dict__.update(restore)
+
+    @staticmethod
+    def _fmu_state_to_bytes(state: dict) -> bytes:
+        return fmu_state.to_bytes(state)
+
+    @staticmethod
+    def _fmu_state_from_bytes(data: bytes) -> dict:
+        return fmu_state.from_bytes(data)
+
+    def _checked_state(self, state: dict) -> dict:
+        """The attributes to assign for ``state``, every field checked first; raises StateError."""
+        Err = fmu_state.StateError
+        if not isinstance(state, dict):
+            raise Err(f"not a state: {type(state).__name__}")
+        if "invalid" in state:
+            raise Err(str(state["invalid"]))
+        want = {"format", "version", "model", "variables", "refusal", "core"}
+        if set(state) != want:
+            raise Err(f"fields {sorted(set(state) ^ want)} are wrong (expected {sorted(want)})")
+        if state["format"] != fmu_state.FORMAT:
+            raise Err(f"format = {state['format']!r} is not {fmu_state.FORMAT!r}")
+        if state["version"] != fmu_state.VERSION:
+            raise Err(f"version = {state['version']!r}: this FMU reads version {fmu_state.VERSION}")
+        if state["model"] != type(self).__name__:
+            raise Err(f"model = {state['model']!r}: a state of another FMU cannot be set on {type(self).__name__}")
+        refusal = state["refusal"]
+        if refusal is not None and not isinstance(refusal, str):
+            raise Err("refusal: not a string")
+        values, nodes = state["variables"], state["core"]
+        if not isinstance(values, dict) or set(values) != {v.name for v in self.contract}:
+            extra = sorted(set(values) - {v.name for v in self.contract}) if isinstance(values, dict) else []
+            missing = sorted({v.name for v in self.contract} - set(values)) if isinstance(values, dict) else []
+            raise Err(f"variables: missing {missing}, unknown {extra}")
+        out = {"_refusal": refusal}
+        for var in self.contract:
+            value = fmu_state.decode_value(values[var.name], var.name)
+            if not isinstance(value, _PLAIN[var.type]) or isinstance(value, bool) != (var.type == "Boolean"):
+                raise Err(f"variables.{var.name}: {type(value).__name__} where a {var.type} is expected")
+            if var.type == "Integer" and not -2 ** 31 <= value < 2 ** 31:
+                raise Err(f"variables.{var.name} = {value} is not a 32-bit integer")
+            if var.causality == "parameter" and refusal is None and (msg := problem(var, value)) is not None:
+                raise Err(f"variables.{msg}")
+            out[var.name] = float(value) if var.type == "Real" else value
+        saved = [n for n in self.state_attributes if n not in self.derived_attributes]
+        if not isinstance(nodes, dict) or set(nodes) != set(saved):
+            raise Err(f"core: holds {sorted(nodes) if isinstance(nodes, dict) else nodes!r}, not {sorted(saved)}")
+        core = fmu_state.decode(nodes, fmu_state.table(self.state_classes))
+        if refusal is not None or any(v is None for v in core.values()):
+            if any(v is not None for v in core.values()):
+                raise Err("core: a state without its core (refused or not initialized) holds part of one")
+            core.update({n: None for n in self.derived_attributes})
+        else:
+            ref = self._template(out)
+            for name in saved:
+                fmu_state.check_against(core[name], ref[name], f"core.{name}")
+            core.update({n: ref[n] for n in self.derived_attributes})
+        out.update(core)
+        return out
+
+    def _template(self, values: dict) -> dict:
+        """The state attributes ``setup()`` builds from the parameters in ``values`` (on a
+        stand-in, this instance untouched): what a restored core is checked against."""
+        shadow = object.__new__(type(self))
+        shadow.__dict__.update(self.__dict__)
+        shadow.__dict__.update(values)
+        shadow.log = lambda *a, **k: None
+        try:
+            type(self).setup(shadow)
+        except Exception as e:  # noqa: BLE001
+            raise fmu_state.StateError(f"its parameters build no core: {e}") from None
+        return {n: getattr(shadow, n, None) for n in self.state_attributes}
 
     # -- model description ------------------------------------------------------------------
     def to_xml(self, model_options=dict()) -> Element:

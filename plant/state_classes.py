@@ -1,0 +1,14 @@
+"""Every class whose objects the plant FMUs' cores hold: the only classes a saved QuarterCar or
+ISORoad FMU state may name (fmu_src/suspension_fmi/state.py). The road itself is not saved: it
+is a function of ISORoad's parameters, rebuilt on restore."""
+from __future__ import annotations
+
+from .iri import IRIMeter
+from .nonlinear_car import NonlinearQuarterCar
+from .quarter_car import QuarterCar, SensorNoise
+from .suspension_forces import AirSpring, BumpStops, PiecewiseDamper
+from .vehicle import Vehicle
+
+QUARTER_CAR_STATE: tuple[type, ...] = (QuarterCar, NonlinearQuarterCar, Vehicle, SensorNoise, AirSpring,
+                                       PiecewiseDamper, BumpStops)
+ISO_ROAD_STATE: tuple[type, ...] = (IRIMeter,)
