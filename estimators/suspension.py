@@ -864,7 +864,8 @@ class SuspensionEstimator:
             src = self.anchor if self.anchor_trusted else kf
             a_use = acc_sprung if ok_a else float(self.model.H[0] @ kf.x)
             d_use = deflection if ok_d else float(src.x[IZS] - src.x[IZU])
-            me.update(a_use, d_use, h, use=ok_a and ok_d and status != STATUS_REINIT)
+            me.update(a_use, d_use, h, use=ok_a and ok_d and status != STATUS_REINIT
+                      and speed >= cfg.tuning.mass_min_speed)
             if me.resets != self._resets_seen:  # a payload change detected
                 self._resets_seen = me.resets
                 if self._episode_closed():  # else: still part of the open one (e.g. the start)
@@ -1029,7 +1030,7 @@ class SuspensionEstimator:
         elif me is not None:
             ok = live[0] and live[2]
             me.update(vals[0] if live[0] else 0.0, vals[2] if live[2] else x[IZS] - x[IZU], h,
-                      use=ok and status != STATUS_REINIT)
+                      use=ok and status != STATUS_REINIT and speed >= cfg.tuning.mass_min_speed)
             if cfg.mass_feedback and me.samples * h >= cfg.tuning.mass_warmup:
                 m, _, agree = self._mass_agrees(me, h)
                 if not agree and self.time - self._last_rebuild >= cfg.tuning.mass_rebuild_interval:

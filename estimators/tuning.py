@@ -85,6 +85,11 @@ class Tuning:
     # until 6.3 s, and the road's common mode drifted 16-20 mm; with 1 s, 0.5 mm. The first
     # feedback still falls inside refilter_span, so the filter is re-run from the start at it.
     mass_warmup: float = 1.0
+    # m/s below which the car stands: the road excites nothing, the body's free decay ends in
+    # about 2 s, and the regression's excitation test (a 1 s low-pass of F[a_s]^2) stays open
+    # ~9 s longer, in which the RLS fitted noise to noise (410 kg -> 41 kg, the bound, in 3 s
+    # standing). Below it the mass and its std hold.
+    mass_min_speed: float = 0.5
     # relative difference of the RLS mass from the model mass above which the RLS keeps using
     # live body-acceleration and deflection samples that the road filter rejects
     mass_trust_sensors: float = 0.05

@@ -1,7 +1,8 @@
 """Command line.
 
-``python -m suspension_estimation.harness run <scenario> [--out DIR] [--no-plots] [--dist DIR]``: prints a summary;
-writes ``<out>/<scenario>.csv`` and PNG plots (default ``results/<scenario>/``).
+``python -m suspension_estimation.harness run <scenario> [--out DIR] [--no-plots] [--dist DIR]``: prints the vehicle's
+and the estimator's parameters (``runner.parameter_lines``), then a summary; writes ``<out>/<scenario>.csv``
+and PNG plots (default ``results/<scenario>/``).
 
 ``python -m suspension_estimation.harness paper [--study NAME ...] [--seeds N] [--duration S] [--warmup S] [--step S]
 [--classes B,C,D] [--workers N] [--out DIR] [--study10ms] [--class-study N] [--dask]
@@ -19,19 +20,53 @@ metrics per run and estimator streamed to Parquet (default the file's ``output``
 already there; prints a summary. Exits 1 if a run failed now (after recording it and finishing
 the others).
 
+``python -m suspension_estimation.harness calibrate LOG --profile REF --mass KG --out FILE [--offset M]
+[--search M] [--noise A_S,A_U,D] [--settle S] [--profile-units U] [--map ...] [--unit ...]``: fits m_u, k_s, k_t, c_s of
+the linear quarter car to a log (read as ``estimate`` reads it) driven over a section of known profile
+(harness/calibrate.py); prints them with their
+1-sigma and writes the estimator's vehicle file (TOML). A section too short or too smooth to identify
+them: a warning line on stderr, exit 0.
+
+``python -m suspension_estimation.harness estimate LOG --out DIR [--map CHANNEL=COLUMN ...] [--unit CHANNEL=UNIT ...]
+[--vehicle FILE] [--segment M] [--dist DIR]``: the estimator FMU over a log of your own, CSV or MDF4
+(harness/estimate.py); writes ``DIR/estimates.csv``, ``DIR/iri.csv`` and ``DIR/report.png``, prints a summary.
+
 A user error (unknown scenario, bad key, an FMU refusing) prints one line to stderr and exits 1.
+Each command's ``--help`` lists what it can run: the shipped scenarios and sweeps with the
+``description`` of their files, the studies with their line in ``harness.studies.STUDIES``.
 """
 from __future__ import annotations
 
 import argparse
 import sys
+import tomllib
 from pathlib import Path
 
+from . import estimate
 from .cosim import SimulationError
-from .runner import DIST, RESULTS, run_scenario, summary
-from .scenario import ScenarioError, load_scenario
+from .runner import DIST, RESULTS, choose_system, parameter_lines, run_scenario, summary
+from .scenario import SCENARIOS, ScenarioError, load_scenario
 from .studies import STUDIES
-from .sweep import SweepError
+from .studies.suite import DEFAULT_STUDIES
+from .sweep import SWEEPS, SweepError
+
+
+def _listing(rows: dict[str, str]) -> str:
+    """``name  text`` lines, the texts aligned (an epilog of --help)."""
+    width = max(map(len, rows), default=0)
+    return "\n".join(f"  {name:<{width}}  {text}" for name, text in rows.items())
+
+
+def _shipped(folder: Path) -> dict[str, str]:
+    """Name -> ``description`` of each TOML file in ``folder`` (the scenarios, the sweeps)."""
+    out = {}
+    for f in sorted(folder.glob("*.toml")):
+        try:
+            with open(f, "rb") as fh:
+                out[f.stem] = str(tomllib.load(fh).get("description", ""))
+        except (OSError, tomllib.TOMLDecodeError) as e:  # --help must not fail on one bad file
+            out[f.stem] = f"(unreadable: {e})"
+    return out
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -39,6 +74,9 @@ def _run(args: argparse.Namespace) -> int:
 
     scenario = load_scenario(args.scenario)
     out = Path(args.out) if args.out else RESULTS / scenario.name
+    print(f"{scenario.name}: {scenario.description or scenario.path}")
+    for line in parameter_lines(scenario, choose_system(scenario, Path(args.dist))):
+        print(line)
     n = round(scenario.duration / scenario.step)
     with tqdm(total=n, unit="step", desc=scenario.name, disable=args.quiet or None, leave=False) as bar:
         try:
@@ -97,31 +135,73 @@ def _sweep(args: argparse.Namespace) -> int:
     return 1 if rep.failed else 0
 
 
+def _calibrate(args: argparse.Namespace) -> int:
+    from ..plant.quarter_car import SensorNoise
+    from .calibrate import run, summary_lines
+
+    try:
+        stds = [float(x) for x in args.noise.split(",")] if args.noise else None
+    except ValueError:
+        stds = []
+    if stds is not None and len(stds) != 3:
+        raise ValueError(f"--noise takes three stds A_S,A_U,D (m/s2, m/s2, m), not {args.noise!r}")
+    keys = ("time", *estimate.CHANNELS)
+    cal = run(args.log, args.profile, args.mass, args.out, offset=args.offset, search=args.search,
+              noise=SensorNoise(*stds) if stds else SensorNoise(), settle=args.settle,
+              profile_units=args.profile_units, names=estimate.parse_pairs(args.map, "--map", keys),
+              units=estimate.parse_pairs(args.unit, "--unit", keys))
+    print("\n".join(summary_lines(cal)))
+    print(f"wrote {args.out}")
+    for w in cal.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m suspension_estimation.harness", description="Co-simulate the project's FMUs.")
+    raw = argparse.RawDescriptionHelpFormatter
+    scenarios, sweeps = _shipped(SCENARIOS), _shipped(SWEEPS)
+    ap = argparse.ArgumentParser(prog="python -m suspension_estimation.harness", description="Co-simulate the project's FMUs.",
+                                 epilog="A user error (unknown scenario, bad key, an FMU refusing) prints one line "
+                                        "to stderr and exits 1. Each command's --help lists what it can run.")
     sub = ap.add_subparsers(dest="command", required=True)
-    run = sub.add_parser("run", help="run a scenario (a name in harness/scenarios/ or a .toml path)")
-    run.add_argument("scenario", help="scenario name (e.g. default) or path to a .toml file")
+    run = sub.add_parser("run", formatter_class=raw,
+                         help=f"co-simulate a scenario ({', '.join(scenarios)}, or a .toml file)",
+                         description="Co-simulate a scenario: road -> plant (-> estimator when its FMU is in "
+                                     "--dist).\nPrints the vehicle's and the estimator's parameters, then the "
+                                     "scores;\nwrites <out>/<scenario>.csv and PNG plots.",
+                         epilog=f"scenarios (harness/scenarios/; keys: harness/scenario.py):\n{_listing(scenarios)}")
+    run.add_argument("scenario", help="scenario name (one of those below) or path to a .toml file")
     run.add_argument("--out", help="output folder (default results/<scenario>/)")
     run.add_argument("--dist", default=str(DIST), help="folder with the FMUs (default dist/)")
     run.add_argument("--no-plots", dest="plots", action="store_false", help="write no PNG plots")
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     run.set_defaults(func=_run)
-    paper = sub.add_parser("paper", help="the papers' tables (MME&KF Table 2, vehicle-mass case) through the FMUs")
+    studies = {name: text for name, (_, text) in STUDIES.items()}
+    paper = sub.add_parser("paper", formatter_class=raw,
+                           help=f"the papers' and robustness studies through the FMUs ({len(STUDIES)} studies: paper --help)",
+                           description="The papers' and robustness studies through the FMUs, in worker processes "
+                                       "(or on Dask).\nPrints the tables and targets as markdown; writes "
+                                       "<out>/paper_tables.md, paper_runs.json,\nruns.jsonl and PNG plots. "
+                                       "Exits 1 if a run failed (after finishing the others).",
+                           epilog=f"studies (--study NAME; without it: {' and '.join(DEFAULT_STUDIES)}):\n"
+                                  f"{_listing(studies)}")
     paper.add_argument("--study", action="append", metavar="NAME",
-                       help=f"run this study (repeatable; one of {', '.join(STUDIES)}; default: table2 and mass, "
+                       help=f"run this study (repeatable; one of those below; default: {' and '.join(DEFAULT_STUDIES)}, "
                             "plus those --study10ms and --class-study add)")
     paper.add_argument("--seeds", type=int, default=10, help="seeds per cell (default 10)")
-    paper.add_argument("--duration", type=float, default=60.0, help="s per Table-2 run (default 60)")
-    paper.add_argument("--warmup", type=float, default=10.0, help="s not scored at the start (default 10)")
-    paper.add_argument("--step", type=float, default=0.001, help="communication step in s (default 0.001)")
-    paper.add_argument("--classes", default="B,C,D", help="ISO classes of Table 2 (default B,C,D)")
+    paper.add_argument("--duration", type=float, default=60.0,
+                       help="s per run of table2, 10ms, class, robust and paper003 (default 60; the others have "
+                            "their own)")
+    paper.add_argument("--warmup", type=float, default=10.0,
+                       help="s not scored at the start of those runs (default 10)")
+    paper.add_argument("--step", type=float, default=0.001,
+                       help="communication step in s (default 0.001; 10ms and vb have their own)")
+    paper.add_argument("--classes", default="B,C,D", help="ISO classes of table2, 10ms and robust (default B,C,D)")
     paper.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
     paper.add_argument("--out", default=str(RESULTS / "paper"), help="output folder (default results/paper/)")
-    paper.add_argument("--study10ms", action="store_true",
-                       help="also the Table-2 study at 10 ms with acc_sampling 0 and 1")
+    paper.add_argument("--study10ms", action="store_true", help="also the 10ms study")
     paper.add_argument("--class-study", type=int, default=0, metavar="N",
-                       help="also the online-class study, ISO A-E at 10, 20, 30 m/s, with N seeds (default 0: off)")
+                       help="also the class study, with N seeds (default 0: off; --study class: --seeds)")
     paper.add_argument("--dask", action="store_true",
                        help="run on a Dask LocalCluster of --workers processes (the sweep runner: FMUs reused per worker)")
     paper.add_argument("--scheduler", metavar="ADDRESS", help="run on the Dask cluster at ADDRESS")
@@ -130,8 +210,13 @@ def main(argv: list[str] | None = None) -> int:
                        help="keep the completed runs in <out>/runs.jsonl (same FMUs) and run only the others")
     paper.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     paper.set_defaults(func=_paper)
-    sweep = sub.add_parser("sweep", help="a grid or Monte Carlo study on Dask, rows of metrics to Parquet")
-    sweep.add_argument("sweep", help="sweep name (e.g. small_grid, paper_table2) or path to a .toml file")
+    sweep = sub.add_parser("sweep", formatter_class=raw,
+                           help="a grid or Monte Carlo study on Dask, rows of metrics to Parquet",
+                           description="A grid or Monte Carlo study on Dask (extra 'sweep'): one row of metrics per "
+                                       "run and\nestimator streamed to Parquet, skipping the runs already there; "
+                                       "prints a summary.\nExits 1 if a run failed now.",
+                           epilog=f"sweeps (harness/sweeps/; keys: harness/sweep.py):\n{_listing(sweeps)}")
+    sweep.add_argument("sweep", help="sweep name (one of those below) or path to a .toml file")
     sweep.add_argument("--workers", type=int, default=2,
                        help="Dask worker processes of a local cluster (default 2; 0 = in this process, no Dask)")
     sweep.add_argument("--scheduler", metavar="ADDRESS", help="use the Dask cluster at ADDRESS instead")
@@ -141,6 +226,29 @@ def main(argv: list[str] | None = None) -> int:
     sweep.add_argument("--limit", type=int, help="run at most N co-simulations now")
     sweep.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     sweep.set_defaults(func=_sweep)
+    cal = sub.add_parser("calibrate", help="fit the vehicle (m_u, k_s, k_t, c_s) on a section of known profile",
+                         description="Fit m_u, k_s, k_t, c_s of the linear quarter car, with the sprung mass given, to "
+                                     "a log driven over a section whose profile is known (the log's start at --offset "
+                                     "of the profile, refined by the fit); write the estimator's vehicle file (TOML).")
+    cal.add_argument("log", help="the log, read as estimate reads it (CSV or MDF4): time (s), acc_sprung, "
+                                 "acc_unsprung (m/s2), susp_deflection (m), vehicle_speed (m/s)")
+    cal.add_argument("--profile", required=True, help="the section's profile (CSV, ERD or OpenCRG, as ISORoad plays)")
+    cal.add_argument("--mass", type=float, required=True,
+                     help="sprung mass m_s in kg (the response fixes only ratios: every value scales with it)")
+    cal.add_argument("--out", required=True, help="vehicle file to write (TOML)")
+    cal.add_argument("--offset", type=float, default=0.0,
+                     help="profile distance (m) at the log's first sample (default 0); the fit refines it")
+    cal.add_argument("--search", type=float, default=2.0,
+                     help="m either side of --offset searched for the placement's start value (default 2)")
+    cal.add_argument("--noise", help="sensor noise stds A_S,A_U,D in m/s2, m/s2, m (default: the contract's, "
+                                     "0.02,0.2,0.0001)")
+    cal.add_argument("--settle", type=float, default=2.0, help="s at the start not scored (default 2)")
+    cal.add_argument("--profile-units", default="",
+                     help="units of the profile, as ISORoad's profile_units ('mm', 'ft,in')")
+    cal.add_argument("--map", action="append", metavar="CHANNEL=COLUMN", help="a column of the log, as for estimate")
+    cal.add_argument("--unit", action="append", metavar="CHANNEL=UNIT", help="a unit of the log, as for estimate")
+    cal.set_defaults(func=_calibrate)
+    estimate.add_parser(sub)
     args = ap.parse_args(argv)
     try:
         return args.func(args)

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from .cosim import CoSimulation, SimulationError, System, model_variables, write_csv
-from .scenario import Scenario, ScenarioError
+from .scenario import Profile, Scenario, ScenarioError
 from .ssp import ROAD_PLANT, ROAD_PLANT_ESTIMATOR, ensure_system_ssp, read_ssp
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -28,6 +28,17 @@ RECORD = {
                             "road_class_est", "susp_deflection_est", "nis", "status", "iri_est"],
 }
 _TABLE = {"ISORoad": "road", "QuarterCar": "plant", "SuspensionEstimator": "estimator"}
+
+# the parameters ``run`` prints before its results (``parameter_lines``), beside every other one
+# the scenario sets and those of a nonlinear spring or damper law in use
+SHOWN = {
+    "QuarterCar": ("m_u", "k_s", "k_t", "c_s", "spring_model", "damper_model", "acc_sprung_noise_std",
+                   "acc_unsprung_noise_std", "defl_noise_std", "noise_seed", "acc_sampling"),
+    "SuspensionEstimator": ("m_s_nominal", "m_u", "k_s", "k_t", "c_s", "spring_model", "damper_model",
+                            "road_estimator", "mass_estimator", "mass_feedback", "road_class",
+                            "acc_sprung_noise_std", "acc_unsprung_noise_std", "defl_noise_std", "acc_sampling"),
+}
+_LABELS = {"QuarterCar": "vehicle (QuarterCar)", "SuspensionEstimator": "estimator (SuspensionEstimator)"}
 
 
 @dataclass
@@ -72,6 +83,73 @@ def _check_parameters(scenario: Scenario, parameters: dict, variables: dict[str,
               "String": isinstance(value, str)}.get(v.type, True)
         if not ok:
             raise ScenarioError(f"{where}: '{table}.{var}' must be a {v.type}, got {value!r}")
+
+
+def _start(var) -> object:
+    """A parameter's start value (the model description's text) as a Python value."""
+    if var.type == "Real":
+        return float(var.start)
+    if var.type == "Integer":
+        return int(var.start)
+    if var.type == "Boolean":
+        return var.start in ("true", "1")
+    return var.start
+
+
+def _value_text(name: str, value, var, codes: dict) -> str:
+    """``name value unit``; an integer code with its meaning (``codes``: the contract's names of the codes)."""
+    if isinstance(value, bool):
+        return f"{name} {str(value).lower()}"
+    if var.type == "Integer":
+        meaning = codes.get(name, {}).get(int(value))
+        return f"{name} {int(value)}" + (f" ({meaning})" if meaning else "")
+    unit = f" {var.unit}" if var.unit not in (None, "1") else ""
+    return f"{name} {value:.6g}{unit}" if isinstance(value, (int, float)) else f"{name} {value!r}"
+
+
+def _profile_text(p: Profile, unit: str) -> str:
+    """A constant, or the breakpoints' values with their times (s)."""
+    if p.is_constant:
+        return f"{p.value[0]:.6g} {unit}"
+    return (" -> ".join(f"{v:.6g}" for v in p.value) + f" {unit} ({p.interpolation} at "
+            + ", ".join(f"{t:.6g}" for t in p.time) + " s)")
+
+
+def parameter_lines(scenario: Scenario, system: System, width: int = 100) -> list[str]:
+    """The vehicle's (QuarterCar) and the estimator's parameters a run of ``scenario`` on ``system``
+    uses, with units, a few lines each: the ``SHOWN`` ones, those of a nonlinear spring (air_*) or
+    damper (damper_*) law in use and every other the scenario sets; the scenario's value, else the
+    FMU's start value. ``ScenarioError`` for a parameter the FMUs do not have."""
+    from suspension_estimation.suspension_fmi.contract import CONTRACTS
+
+    variables = model_variables(system)
+    parameters = scenario.parameters("SuspensionEstimator" in system.components)
+    _check_parameters(scenario, parameters, variables)
+    lines = []
+    for inst, shown in SHOWN.items():
+        if inst not in variables:
+            continue
+        mv = variables[inst]
+        codes = {v.name: v.allowed for v in CONTRACTS.get(inst, ()) if isinstance(v.allowed, dict)}
+        value = {n: _start(v) for n, v in mv.items() if v.causality == "parameter"}
+        given = {k.split(".", 1)[1]: v for k, v in parameters.items() if k.startswith(f"{inst}.")}
+        value.update(given)
+        laws = (("air_",) if value.get("spring_model") == 1 else ()) + (
+            ("damper_c", "damper_knee") if value.get("damper_model") == 1 else ())
+        names = dict.fromkeys([*(n for n in shown if n in value), *(n for n in value if laws and n.startswith(laws)),
+                               *given])
+        items = [_value_text(n, value[n], mv[n], codes) for n in names]
+        if inst == "QuarterCar":
+            items.insert(0, f"sprung_mass {_profile_text(scenario.sprung_mass, 'kg')}")
+        line, on_line = f"  {_LABELS[inst]}:", 0
+        for i, item in enumerate(items):  # whole items per line
+            text = f" {item}" + ("," if i < len(items) - 1 else "")
+            if on_line and len(line) + len(text) > width:
+                lines.append(line)
+                line, on_line = "   ", 0
+            line, on_line = line + text, on_line + 1
+        lines.append(line)
+    return lines
 
 
 def run_scenario(scenario: Scenario, dist: Path = DIST, out: Path | None = None,

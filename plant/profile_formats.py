@@ -114,17 +114,18 @@ def _finish(path: Path, dist: np.ndarray, elev: np.ndarray) -> tuple[np.ndarray,
     return dist, elev
 
 
-def _lines(path: Path, f: BinaryIO, first: int = 1) -> Iterator[tuple[int, bytes]]:
+def text_lines(path: Path, f: BinaryIO, first: int = 1, error: type[Exception] = ProfileError,
+               label: str = "profile_file ") -> Iterator[tuple[int, bytes]]:
     """(line number, line without its end) of a file opened in binary mode from its position on;
-    a line longer than MAX_LINE characters is refused having read MAX_LINE + 2 of them."""
+    a line longer than MAX_LINE characters is refused (``error``) having read MAX_LINE + 2 of them."""
     for lineno in itertools.count(first):
         line = f.readline(MAX_LINE + 2)  # and its end, \r\n
         if not line:
             return
         text = line.rstrip(b"\r\n")
         if len(text) > MAX_LINE:
-            raise ProfileError(f"profile_file '{path}' line {lineno} is longer than {MAX_LINE} characters, "
-                               "the limit of a text line: binary data, or a file without line ends?")
+            raise error(f"{label}'{path}' line {lineno} is longer than {MAX_LINE} characters, "
+                        "the limit of a text line: binary data, or a file without line ends?")
         yield lineno, text
 
 
@@ -158,7 +159,7 @@ def read_columns(path: Path, units: str = "") -> tuple[np.ndarray, np.ndarray]:
     header_units = (None, None)
     other = 0
     with open(path, "rb") as f:
-        for lineno, line in _lines(path, f):
+        for lineno, line in text_lines(path, f):
             parts = line.replace(b",", b" ").replace(b";", b" ").split()
             if not parts or parts[0].startswith(b"#"):
                 other = _count_other(path, lineno, other)
@@ -194,7 +195,7 @@ def read_erd(path: Path, units: str = "") -> tuple[np.ndarray, np.ndarray]:
     """The first channel of an ERD text file (see the module doc)."""
     d_unit, e_unit = parse_units(units)
     with open(path, "rb") as f:
-        lines = _lines(path, f)
+        lines = text_lines(path, f)
         next(lines, None)  # ERDFILE...
         second = next(lines, (2, b""))[1]
         try:
@@ -263,7 +264,7 @@ def _crg_sections(path: Path) -> tuple[dict[str, str], list[str], str, tuple[int
     fmt = "KRBI"
     section = ""
     with open(path, "rb") as f:
-        for lineno, raw in _lines(path, f):
+        for lineno, raw in text_lines(path, f):
             if lineno > MAX_OTHER_LINES:
                 raise ProfileError(f"profile_file '{path}': the OpenCRG header does not end (a line of '$$$$') "
                                    f"within its first {MAX_OTHER_LINES} lines")
@@ -323,7 +324,7 @@ def _crg_ascii(path: Path, f: BinaryIO, fmt: str, ncols: int, rows: int | None, 
     kept = array("d")
     n = other = 0
     row: list[str] = []
-    for lineno, raw in _lines(path, f, first):
+    for lineno, raw in text_lines(path, f, first):
         if not raw.strip():
             other = _count_other(path, lineno, other)
             continue

@@ -3,14 +3,19 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from suspension_estimation.harness.cli import main
 from suspension_estimation.harness.cosim import read_csv
 from suspension_estimation.harness.runner import run_scenario
 from suspension_estimation.harness.scenario import SCENARIOS, ScenarioError, load_scenario
+from suspension_estimation.harness.studies import STUDIES
+from suspension_estimation.harness.sweep import SWEEPS
+from suspension_estimation.suspension_fmi.contract import ROAD_ESTIMATORS, SUSPENSION_ESTIMATOR
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -133,6 +138,51 @@ def test_cli_run_writes_csv_plots_and_a_summary(dist, tmp_path):
     if (dist / "SuspensionEstimator.fmu").is_file():
         assert {"s_road_estimate.png", "s_sprung_mass.png"} <= pngs
         assert "road estimate" in p.stdout and "sprung mass" in p.stdout
+
+
+def test_cli_run_prints_the_parameters_it_uses(dist, tmp_path):
+    """Before the summary: the plant's vehicle and the estimator's parameters with units, the
+    scenario's values where it sets them ([plant] k_s is also what the estimator assumes) and the
+    FMU's defaults elsewhere (m_s_nominal)."""
+    text = SHORT + "k_s = 25000.0\n[estimator]\nroad_estimator = 0\n"
+    p = harness("run", str(scenario_file(tmp_path, text)), "--out", str(tmp_path / "out"), "--dist", str(dist),
+                "--no-plots")
+    assert p.returncode == 0, p.stderr
+    before, summary = p.stdout.split("s: ISORoad -> QuarterCar", 1)
+    vehicle, estimator = " ".join(before.split()).split("estimator (SuspensionEstimator):")
+    assert "vehicle (QuarterCar):" in vehicle and "road estimate" in summary
+    for item in ("sprung_mass 410 -> 300 kg (step at 0, 0.15 s)", "k_s 25000 N/m,", "m_u 39 kg,",
+                 "acc_sprung_noise_std 0 m/s2,", "acc_unsprung_noise_std 0.3 m/s2,", "spring_model 0 (linear)"):
+        assert item in vehicle, (item, vehicle)
+    default = {v.name: v for v in SUSPENSION_ESTIMATOR}
+    m_s = default["m_s_nominal"]
+    for item in (f"m_s_nominal {m_s.start:g} {m_s.unit},", "k_s 25000 N/m,", "acc_unsprung_noise_std 0.3 m/s2,",
+                 f"acc_sprung_noise_std {default['acc_sprung_noise_std'].start:g} m/s2,",
+                 f"road_estimator 0 ({ROAD_ESTIMATORS[0][0]}),", "mass_feedback true,"):
+        assert item in estimator, (item, estimator)
+
+
+def test_help_lists_every_scenario_study_and_sweep(capsys):
+    """``--help`` of each command: run lists the shipped scenarios and paper the registered studies,
+    each with its description; sweep the shipped sweeps."""
+    def help_text(*args: str) -> str:
+        with pytest.raises(SystemExit) as e:
+            main([*args, "--help"])
+        assert e.value.code == 0
+        return capsys.readouterr().out
+
+    def described(folder: Path) -> dict[str, str]:
+        return {f.stem: tomllib.loads(f.read_text())["description"] for f in folder.glob("*.toml")}
+
+    top = " ".join(help_text().split())
+    assert all(c in top for c in ("run", "paper", "sweep")) and f"({len(STUDIES)} studies" in top
+    listed = {"run": described(SCENARIOS), "paper": {n: text for n, (_, text) in STUDIES.items()},
+              "sweep": described(SWEEPS)}
+    assert len(listed["run"]) >= 4 and len(listed["paper"]) >= 8
+    for command, rows in listed.items():
+        lines = help_text(command).splitlines()
+        for name, description in rows.items():
+            assert any(line.split() == [name, *description.split()] for line in lines), (command, name)
 
 
 def test_cli_no_plots(dist, tmp_path):
