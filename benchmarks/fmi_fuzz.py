@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-MODELS = ("ISORoad", "QuarterCar", "SuspensionEstimator")
+MODELS = ("ISORoad", "QuarterCar", "SuspensionEstimator", "HalfCar")
 
 
 def worker(fmu: Path, n: int, seed: int) -> dict:

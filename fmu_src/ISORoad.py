@@ -1,4 +1,5 @@
-"""ISORoad FMU: an ISO 8608 road profile (or a measured one) traversed at the input speed."""
+"""ISORoad FMU: an ISO 8608 road profile (or a measured one) traversed at the input speed, under
+the front tyre and, ``wheelbase`` behind it, under the rear tyre."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -47,6 +48,7 @@ class ISORoad(ContractSlave):
         h, slope = self.road.eval(self.distance)
         self.road_height = h
         self.road_velocity = slope * speed
+        self.road_height_rear = self.road.eval(self.distance - self.wheelbase)[0] if self.wheelbase > 0 else h
         self.iri = self.meter.update(self.distance, h)
 
     def step(self, t: float, h: float) -> None:

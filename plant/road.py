@@ -139,7 +139,8 @@ class MeasuredRoad:
 
     ``profile_end`` says what lies past the last sample: 0 = nothing (``eval`` raises a
     ProfileError that says so), 1 = the last elevation, held flat, 2 = the profile again, shifted
-    by its end-to-start rise per lap so that the road stays continuous.
+    by its end-to-start rise per lap so that the road stays continuous. Before the first sample
+    (a negative distance: a rear tyre behind the start) the first elevation is held flat.
     """
 
     def __init__(self, distance: np.ndarray, elevation: np.ndarray, name: str = "profile", profile_end: int = 0):
@@ -158,6 +159,8 @@ class MeasuredRoad:
         return cls(*read_profile(path, units, lateral_offset), name=str(path), profile_end=profile_end)
 
     def eval(self, s: float) -> tuple[float, float]:
+        if s < 0.0:
+            return float(self._curve.h[0]), 0.0
         if s > self.length * (1 + 1e-12):
             if self.profile_end == 1:
                 return self._curve.eval(self._curve.end)[0], 0.0

@@ -1,8 +1,9 @@
-"""Every class whose objects the plant FMUs' cores hold: the only classes a saved QuarterCar or
-ISORoad FMU state may name (fmu_src/suspension_fmi/state.py). The road itself is not saved: it
+"""Every class whose objects the plant FMUs' cores hold: the only classes a saved QuarterCar,
+HalfCar or ISORoad FMU state may name (fmu_src/suspension_fmi/state.py). The road itself is not saved: it
 is a function of ISORoad's parameters, rebuilt on restore."""
 from __future__ import annotations
 
+from .half_car import HalfCar, HalfCarParams
 from .iri import IRIMeter
 from .nonlinear_car import NonlinearQuarterCar
 from .quarter_car import QuarterCar, SensorNoise
@@ -11,4 +12,5 @@ from .vehicle import Vehicle
 
 QUARTER_CAR_STATE: tuple[type, ...] = (QuarterCar, NonlinearQuarterCar, Vehicle, SensorNoise, AirSpring,
                                        PiecewiseDamper, BumpStops)
+HALF_CAR_STATE: tuple[type, ...] = (HalfCar, HalfCarParams, SensorNoise)
 ISO_ROAD_STATE: tuple[type, ...] = (IRIMeter,)

@@ -36,6 +36,8 @@ STEPS = st.one_of(st.sampled_from([1e-3, 1e-3, 1e-3, 2e-3, 0.0, -1e-3, math.nan,
                   st.floats(1e-6, 0.02))
 # valid inputs for the end check and the reference run, per FMU
 VALID = {"ISORoad": {"vehicle_speed": 11.0}, "QuarterCar": {"road_height": 0.002, "sprung_mass": 410.0},
+         "HalfCar": {"road_height_front": 0.002, "road_height_rear": -0.001, "sprung_mass": 672.0,
+                     "force_front": 50.0, "force_rear": -20.0},
          "SuspensionEstimator": {"acc_sprung": 0.3, "acc_unsprung": -2.0, "susp_deflection": 0.001,
                                  "vehicle_speed": 11.0}}
 

@@ -17,6 +17,10 @@ def feed(name: str):
         return lambda k: {"vehicle_speed": 8.0 + 4.0 * np.sin(k / 200)}
     if name == "QuarterCar":
         return lambda k: {"road_height": road[k], "sprung_mass": 410.0 if k < 1500 else 500.0}
+    if name == "HalfCar":
+        return lambda k: {"road_height_front": road[k], "road_height_rear": road[k - 135] if k >= 135 else 0.0,
+                          "sprung_mass": 672.0 if k < 1500 else 760.0, "force_front": 300.0 * np.sin(k / 50),
+                          "force_rear": -100.0 if k > 2000 else 0.0}
     acc = rng.normal(0, 1.0, (4000, 3)) * [1.0, 10.0, 0.01]
     return lambda k: {"acc_sprung": acc[k, 0], "acc_unsprung": acc[k, 1], "susp_deflection": acc[k, 2]}
 
@@ -25,6 +29,8 @@ OUTPUTS = {
     "ISORoad": ["road_height", "road_velocity", "distance"],
     "QuarterCar": ["acc_sprung", "acc_unsprung", "susp_deflection", "z_s", "v_u", "tire_force"],
     "SuspensionEstimator": ["road_height_est", "road_height_std", "v_s_est", "sprung_mass_est", "nis"],
+    "HalfCar": ["acc_body_front", "acc_unsprung_rear", "susp_deflection_rear", "pitch", "v_u_front",
+                "tire_force_rear"],
 }
 
 
@@ -70,7 +76,7 @@ def test_state_restored_replays_bit_identically(dist, name):
 @pytest.mark.parametrize("name", list(OUTPUTS))
 def test_reset_behaves_like_a_fresh_instance(dist, name):
     params = {"ISORoad": {"road_class": 5, "seed": 9}, "QuarterCar": {"noise_seed": 4},
-              "SuspensionEstimator": {"road_class": 4}}[name]
+              "SuspensionEstimator": {"road_class": 4}, "HalfCar": {"noise_seed": 4, "c_r": 0.0}}[name]
     fresh = Driven(dist / f"{name}.fmu", params, name="fresh")
     used = Driven(dist / f"{name}.fmu", params, name="used")
     try:

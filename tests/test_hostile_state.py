@@ -174,7 +174,7 @@ def test_hostile_states_are_refused_naming_the_field(dist, saved, tmp_path):
         d.close()
 
 
-@pytest.mark.parametrize("name", ["ISORoad", "QuarterCar"])
+@pytest.mark.parametrize("name", ["ISORoad", "QuarterCar", "HalfCar"])
 def test_a_pickle_state_runs_nothing_on_the_other_fmus(dist, name, tmp_path):
     marker = tmp_path / "ran"
     blob = json.dumps({"model": name, "pickle": base64.b64encode(pickle.dumps(_Marker(str(marker)))).decode()})

@@ -82,7 +82,8 @@ def test_outputs_declare_the_dependencies_of_the_contract(dist, name):
 
 # a value of each Real input, inside its range, unlike its start value
 _OTHER = {"vehicle_speed": 25.0, "road_height": 0.05, "sprung_mass": 600.0,
-          "acc_sprung": 3.0, "acc_unsprung": -20.0, "susp_deflection": 0.02}
+          "acc_sprung": 3.0, "acc_unsprung": -20.0, "susp_deflection": 0.02,
+          "road_height_front": 0.05, "road_height_rear": -0.03, "force_front": 500.0, "force_rear": -300.0}
 
 
 @pytest.mark.parametrize("name", NAMES)

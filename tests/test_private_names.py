@@ -89,7 +89,8 @@ def test_own_modules_named_like_the_project_do_not_shadow_the_fmus(dist, tmp_pat
     assert set(shadowed["owners"]) >= set(NAMES) and set(shadowed["owners"].values()) == {"user"}
     assert normal["owners"] == {}
     version = build_script.project_version()
-    assert set(shadowed["private"]) == {build_script.private_name(n, version) for n in build_script.FMUS}
+    loaded = ("ISORoad", "QuarterCar", "SuspensionEstimator")
+    assert set(shadowed["private"]) == {build_script.private_name(n, version) for n in loaded}
     assert all("resources" in f and v == version for v, f in shadowed["private"].values())
 
 
@@ -122,7 +123,7 @@ def test_the_private_name_follows_version_and_sources(tmp_path, monkeypatch):
     a = name("ISORoad", "1.0.0")
     assert re.fullmatch(r"_suspension_estimation_1_0_0_[0-9a-f]{8}", a) and a.isidentifier()
     assert name("ISORoad", "1.0.0+local.2") == a.replace("1_0_0", "1_0_0_local_2")
-    assert len({name(n, "1.0.0") for n in build_script.FMUS}) == 3
+    assert len({name(n, "1.0.0") for n in build_script.FMUS}) == len(build_script.FMUS)
     src = tmp_path / "plant"
     src.mkdir()
     (src / "x.py").write_text("A = 1\n")

@@ -84,6 +84,43 @@ def test_profile_file_is_followed(road, tmp_path):
     assert np.allclose(out2[:, 0], out[:, 0], atol=1e-12)
 
 
+def test_road_height_rear_is_road_height_without_a_wheelbase(road):
+    out = road(road_class=4).run(0.001, 500, ["road_height", "road_height_rear"], vehicle_speed=20.0)
+    assert np.array_equal(out[:, 0], out[:, 1])
+
+
+def test_road_height_rear_is_the_same_synthetic_road_a_wheelbase_behind(road):
+    """The rear tyre reads the road at distance - wheelbase, also behind the start: the synthetic
+    road is a sum of cosines, defined for negative distances as for positive ones."""
+    r = road(road_class=4, seed=2, wheelbase=2.7)
+    first = [r.get("road_height"), r.get("road_height_rear"), r.get("distance")]
+    out = np.vstack([first, r.run(0.001, 500, ["road_height", "road_height_rear", "distance"], vehicle_speed=27.0)])
+    core = SyntheticRoad(iso8608.class_psd_n0(4), seed=2)
+    assert np.max(np.abs(out[:, 1] - [core.height(s - 2.7) for s in out[:, 2]])) < 1e-12
+    assert out[0, 1] != out[0, 0]  # at rest the rear tyre stands on the road under it, not on the front's height
+    # 27 mm a step: the rear reads what the front read 100 steps before
+    assert np.max(np.abs(out[100:, 1] - out[:-100, 0])) < 1e-9 * np.ptp(out[:, 0])
+
+
+def test_road_height_rear_holds_a_measured_profiles_first_elevation_behind_its_start(road, tmp_path):
+    s = np.linspace(0.0, 50.0, 501)
+    z = 0.05 + 0.01 * np.sin(2 * np.pi * s / 7.0)
+    f = _write(tmp_path / "p.csv", "".join(f"{a},{b}\n" for a, b in zip(s, z)))
+    out = road(profile_file=f, wheelbase=2.5).run(0.01, 400, ["road_height", "road_height_rear", "distance"],
+                                                  vehicle_speed=10.0)
+    behind = out[:, 2] < 2.5
+    assert np.all(out[behind, 1] == 0.05)
+    assert np.max(np.abs(out[~behind, 1] - (0.05 + 0.01 * np.sin(2 * np.pi * (out[~behind, 2] - 2.5) / 7.0)))) < 1e-5
+
+
+@pytest.mark.parametrize("wheelbase", [-0.1, 25.0, float("nan")])
+def test_bad_wheelbase_is_refused_naming_it(road, wheelbase):
+    r = road(wheelbase=wheelbase)
+    assert any(status == 3 and "wheelbase" in m and "[0, 20]" in m for status, m in r.messages), r.messages
+    with pytest.raises(FMICallException, match="discard"):
+        r.step(0.001)
+
+
 @pytest.mark.parametrize("text, words", [
     (None, ["does not exist"]),
     ("0 0\n1 0.1\nabc 3\n", ["line 3", "two numbers"]),

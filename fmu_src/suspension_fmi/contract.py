@@ -1,4 +1,4 @@
-"""The variable contract of the three FMUs: one table per FMU (docs/fmu-interface.md is generated
+"""The variable contract of the FMUs: one table per FMU (docs/fmu-interface.md is generated
 from it by ``python build.py --docs``).
 
 Every FMU class registers exactly these variables, the model description gets its units and
@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass
 
 from ..plant import iso8608
+from ..plant.half_car import DEFAULT_HALF_CAR, HALF_CAR_RANGES
 from ..plant.iri import SEGMENT_RANGE
 from ..plant.profile_formats import MAX_POINTS
 from ..plant.quarter_car import NOISE_STD_RANGES, SensorNoise
@@ -32,6 +33,9 @@ UNITS: dict[str, dict[str, float]] = {
     "s": {"s": 1},
     "1": {},
     "m/km": {"factor": 1e-3},  # IRI: a slope, 1 m/km = 0.001
+    "rad": {"rad": 1},
+    "rad/s": {"rad": 1, "s": -1},
+    "kg.m2": {"kg": 1, "m": 2},
 }
 
 
@@ -170,6 +174,14 @@ ISO_ROAD: tuple[Var, ...] = (
     Var("road_velocity", "output", "Real", "m/s", None, "time derivative of road_height"),
     Var("distance", "output", "Real", "m", None, "distance travelled"),
     _iri_output("iri", "road_height"),
+    # added for the half car; at the end, so that the value references above stay as they were
+    _real_param("wheelbase", "m", 0.0,
+                "distance from the front to the rear tyre for road_height_rear; 0 = one tyre (road_height_rear "
+                "is road_height)", (0.0, 20.0)),
+    Var("road_height_rear", "output", "Real", "m", None,
+        "elevation under the rear tyre, at distance - wheelbase (HalfCar's road_height_rear). Behind the start "
+        "of a measured profile: its first elevation, held; the synthetic road is a function of distance on "
+        "the whole line (a sum of cosines), so there the rear tyre starts on the road under it"),
 )
 
 QUARTER_CAR: tuple[Var, ...] = (
@@ -296,17 +308,99 @@ SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
         "0 = ok, 1 = last measurement rejected (non-finite or outlier), 2 = filter re-initialised"),
 )
 
+# HalfCar: one side of a mid-size sedan (docs/half-car.md gives the reasoning behind every default)
+HC = DEFAULT_HALF_CAR
+
+
+def _half_car_param(name: str, unit: str, description: str) -> Var:
+    return _real_param(name, unit, getattr(HC, name), description, HALF_CAR_RANGES[name])
+
+
+def _half_car_outputs(kind: str, unit: str, text: str) -> list[Var]:
+    """The measured (with noise) and true outputs of one sensor kind, front and rear."""
+    out = []
+    for end in ("front", "rear"):
+        out.append(Var(f"{kind}_{end}", "output", "Real", unit, None, f"measured (with noise) {text.format(end=end)}"))
+    for end in ("front", "rear"):
+        out.append(Var(f"{kind}_{end}_true", "output", "Real", unit, None, f"noise-free {text.format(end=end)}"))
+    return out
+
+
+HALF_CAR: tuple[Var, ...] = (
+    _half_car_param("pitch_inertia", "kg.m2",
+                    "pitch moment of inertia of the sprung mass about its centre of gravity (one side of the car; "
+                    "default: the default sprung_mass 672 kg times (1.2 m radius of gyration)^2)"),
+    _half_car_param("l_f", "m", "distance from the centre of gravity back to the front axle (default 1.1 m: 59 % "
+                                "of the sprung weight on the front axle of a 2.7 m wheelbase)"),
+    _half_car_param("l_r", "m", "distance from the centre of gravity forward to the rear axle; l_f + l_r > 0 "
+                                "is the wheelbase"),
+    _half_car_param("m_uf", "kg", "front unsprung mass (one wheel; default QuarterCar's m_u)"),
+    _half_car_param("m_ur", "kg", "rear unsprung mass (one wheel; default QuarterCar's m_u)"),
+    _half_car_param("k_f", "N/m", "front suspension spring (default QuarterCar's k_s: 1.13 Hz on the front "
+                                  "corner's 398 kg)"),
+    _half_car_param("k_r", "N/m", "rear suspension spring (default 1.25 Hz on the rear corner's 274 kg: the "
+                                  "rear about 10 % above the front, Olley's flat ride)"),
+    _half_car_param("c_f", "N.s/m", "front passive damper, 0 = none (paper 002's car: actuators only); default "
+                                    "QuarterCar's c_s, damping ratio 0.35"),
+    _half_car_param("c_r", "N.s/m", "rear passive damper, 0 = none; default damping ratio 0.35 on the rear corner"),
+    _half_car_param("k_tf", "N/m", "front tyre stiffness (default QuarterCar's k_t)"),
+    _half_car_param("k_tr", "N/m", "rear tyre stiffness (default QuarterCar's k_t)"),
+    _real_param("acc_sprung_noise_std", "m/s2", NOISE.acc_sprung,
+                "std of white noise on each measured body acceleration (front and rear, independent)", _STD),
+    _real_param("acc_unsprung_noise_std", "m/s2", NOISE.acc_unsprung,
+                "std of white noise on each measured wheel acceleration (front and rear, independent)", _STD),
+    _real_param("defl_noise_std", "m", NOISE.deflection,
+                "std of white noise on each measured suspension deflection (front and rear, independent)", (0.0, 1.0)),
+    Var("noise_seed", "parameter", "Integer", None, 1, "seed of the sensor noise", _SEED),
+    Var("road_height_front", "input", "Real", "m", 0.0,
+        "road elevation under the front tyre (held over the step); absolute levels are fine: the plant settles "
+        "on the first values and works relative to them", (-1e4, 1e4)),
+    Var("road_height_rear", "input", "Real", "m", 0.0,
+        "road elevation under the rear tyre (held over the step; ISORoad's road_height_rear)", (-1e4, 1e4)),
+    Var("sprung_mass", "input", "Real", "kg", HC.m_s,
+        "sprung mass of the side (default: a 1500 kg car less four 39 kg wheels, halved); may change during a "
+        "run, the suspension then levelled, the centre of gravity and pitch_inertia kept", VEHICLE_RANGES["m_s"]),
+    Var("force_front", "input", "Real", "N", 0.0,
+        "front actuator force, positive pushing body and wheel apart (held over the step)", (-1e6, 1e6)),
+    Var("force_rear", "input", "Real", "N", 0.0,
+        "rear actuator force, positive pushing body and wheel apart (held over the step)", (-1e6, 1e6)),
+    *_half_car_outputs("acc_body", "m/s2", "vertical acceleration of the body above the {end} axle"),
+    *_half_car_outputs("acc_unsprung", "m/s2", "vertical acceleration of the {end} wheel"),
+    *_half_car_outputs("susp_deflection", "m",
+                       "{end} suspension deflection: body point above the axle minus wheel, 0 at rest (unless an "
+                       "actuator pushes at the start)"),
+    Var("heave", "output", "Real", "m", None, "true body displacement at the centre of gravity, upwards"),
+    Var("heave_velocity", "output", "Real", "m/s", None, "true body velocity at the centre of gravity"),
+    Var("pitch", "output", "Real", "rad", None, "true body pitch angle, nose up positive (small angles)"),
+    Var("pitch_rate", "output", "Real", "rad/s", None, "true body pitch rate, nose up positive"),
+    Var("z_u_front", "output", "Real", "m", None, "true front wheel displacement, upwards"),
+    Var("v_u_front", "output", "Real", "m/s", None, "true front wheel velocity"),
+    Var("z_u_rear", "output", "Real", "m", None, "true rear wheel displacement, upwards"),
+    Var("v_u_rear", "output", "Real", "m/s", None, "true rear wheel velocity"),
+    Var("tire_force_front", "output", "Real", "N", None,
+        "total front tyre force (static load + k_tf (road_height_front - z_u_front) about the equilibrium); the "
+        "linear tyre pulls when the wheel would lift: then it is negative and tire_contact_front 0"),
+    Var("tire_force_rear", "output", "Real", "N", None, "total rear tyre force (as tire_force_front)"),
+    Var("tire_contact_front", "output", "Integer", None, None,
+        "1 = front tyre pressed on the road, 0 = the linear tyre pulls (the wheel would have lifted)"),
+    Var("tire_contact_rear", "output", "Integer", None, None,
+        "1 = rear tyre pressed on the road, 0 = the linear tyre pulls (the wheel would have lifted)"),
+)
+
 CONTRACTS: dict[str, tuple[Var, ...]] = {
     "ISORoad": ISO_ROAD,
     "QuarterCar": QUARTER_CAR,
     "SuspensionEstimator": SUSPENSION_ESTIMATOR,
+    "HalfCar": HALF_CAR,
 }
 
 # The longest communication step (s) each FMU takes; a longer one is refused (fmi2Discard)
 # before anything moves. The estimator's ISO class from the response band-passes up to 32 Hz,
 # which a step must resolve (32 Hz < 1 / (2 h)): 100 Hz logging is the coarsest the design aims
 # at. The road integrates the IRI over every 250 mm it passes: 1 s at 100 m/s is 400 of them.
-MAX_STEP: dict[str, float] = {"ISORoad": 1.0, "QuarterCar": math.inf, "SuspensionEstimator": 0.015}
+# The plants are exact for any step.
+MAX_STEP: dict[str, float] = {"ISORoad": 1.0, "QuarterCar": math.inf, "SuspensionEstimator": 0.015,
+                              "HalfCar": math.inf}
 
 
 def allowed_text(var: Var) -> str:
@@ -353,4 +447,5 @@ DEPENDENCIES: dict[str, dict[str, tuple[str, ...]]] = {
     "ISORoad": {},
     "QuarterCar": {},
     "SuspensionEstimator": {},
+    "HalfCar": {},
 }

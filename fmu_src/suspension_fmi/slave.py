@@ -165,8 +165,9 @@ class ContractSlave(Fmi2Slave):
             self.log(f"{type(self).__name__} cannot step: {self._refusal}", Fmi2Status.error)
             return False
         longest = MAX_STEP[type(self).__name__]
-        if not 0 < step_size <= longest:
-            self.log(f"communication step size = {step_size!r} s is outside the allowed range (0, {longest:g}] s",
+        if not (0 < step_size <= longest and math.isfinite(step_size)):
+            bound = f"{longest:g}]" if math.isfinite(longest) else "inf)"
+            self.log(f"communication step size = {step_size!r} s is outside the allowed range (0, {bound} s",
                      Fmi2Status.error)
             return False
         if any(getattr(self, n, None) is None for n in self.state_attributes):
