@@ -106,7 +106,8 @@ def test_sensor_noise_alone_identifies_nothing(speed):
     """A flat road or standstill: the sensors give their noise only. The mass and the damping
     hold their nominal values (least squares of noise on noise falls towards zero: the mass
     reached its 41 kg bound in 15 s before), the road filter is not rebuilt (it was, about 20
-    times a second, at each new wrong mass) and the excitation reads about 1."""
+    times a second, at each new wrong mass) and the excitation reads about 1 on the flat road;
+    standing (below Tuning.mass_min_speed) the regression is not fed at all."""
     from suspension_estimation.estimators import SuspensionEstimator
 
     car = QuarterCar(DEFAULT_VEHICLE.with_(m_s=500.0), SensorNoise(), noise_seed=11)
@@ -118,5 +119,5 @@ def test_sensor_noise_alone_identifies_nothing(speed):
     me = est.mass_est
     assert out["sprung_mass_est"] == 410.0 and est.m_model == 410.0 and me.damping == est.cfg.c_s
     assert est.model_builds == 1
-    assert 0.5 < me.excitation < 2.0 and not me.excited_slow
+    assert (me.excitation == 0.0 if speed == 0.0 else 0.5 < me.excitation < 2.0) and not me.excited_slow
     assert 2 * out["mass_std"] > 90.0  # it says the 500 kg body is not identified
