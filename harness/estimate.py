@@ -357,9 +357,10 @@ def plot_report(path: Path, est: np.ndarray, dist: np.ndarray, iri: np.ndarray, 
 
     fig, ax = plt.subplots(4, 1, figsize=(11, 10), sharex=True, gridspec_kw={"height_ratios": [3, 2, 2, 1]})
     fig.suptitle(title)
-    z, s = 1e3 * est["road_height_est"], 1e3 * est["road_height_std"]
+    road = "road_height_smooth" if "road_height_smooth" in est.dtype.names else "road_height_est"
+    z, s = 1e3 * est[road], 1e3 * est[road.replace("_est", "") + "_std"]
     ax[0].fill_between(dist, z - 2 * s, z + 2 * s, color="C0", alpha=0.25, lw=0, label="±2σ")
-    ax[0].plot(dist, z, "C0", lw=0.8, label="road_height_est")
+    ax[0].plot(dist, z, "C0", lw=0.8, label=road)
     ax[0].set_ylabel("road height (mm)")
     ax[0].legend(loc="upper right")
     if len(iri):
@@ -402,8 +403,11 @@ def _replace_into(tmp: Path, out: Path) -> None:
 
 def estimate(log_path: str | Path, out: str | Path, names: dict[str, str] | None = None,
              units: dict[str, str] | None = None, vehicle: str | Path | None = None, segment: float = 100.0,
-             dist: str | Path = DIST, quiet: bool = False) -> list[str]:
-    """Run the estimator over a log and write ``out``/estimates.csv, iri.csv, report.png.
+             dist: str | Path = DIST, quiet: bool = False, smooth: bool = False) -> list[str]:
+    """Run the estimator over a log and write ``out``/estimates.csv, iri.csv, report.png. With
+    ``smooth``, estimates.csv also holds the offline RTS smoother's road and its std
+    (``road_height_smooth``, ``road_height_smooth_std``: harness.smoothing.smooth_default), and the
+    IRI and the report are of the smoothed profile.
 
     Prints warnings (resampling) to stderr; returns the summary paragraph's lines. ``LogError``
     for every problem with the inputs, before anything is written.
@@ -416,6 +420,9 @@ def estimate(log_path: str | Path, out: str | Path, names: dict[str, str] | None
     if not (math.isfinite(segment) and SEGMENT_RANGE[0] <= segment <= SEGMENT_RANGE[1]):
         raise LogError(f"--segment {segment:g} m is outside [{SEGMENT_RANGE[0]:g}, {SEGMENT_RANGE[1]:g}] m")
     parameters = read_vehicle(vehicle, dist) if vehicle is not None else {}
+    if smooth and int(parameters.get("road_estimator", 2)) != 2:
+        raise LogError("--smooth smooths the default road estimator (road_estimator 2) only, not "
+                       f"road_estimator {parameters['road_estimator']}")
     log = read_log(log_path, names, units)
     for note in log.notes:
         print(f"warning: {note}", file=sys.stderr)
@@ -434,13 +441,20 @@ def estimate(log_path: str | Path, out: str | Path, names: dict[str, str] | None
                            + f": {reason}") from None
         raise LogError(f"{log.path}: {ESTIMATOR}.fmu refused the step at t = {e.time:.6g} s: {reason}") from None
     d = distance(log)
-    iri = iri_table(d, est["road_height_est"], segment)
-
+    extra = ("road_height_smooth", "road_height_smooth_std") if smooth else ()
     table = np.empty(len(est), dtype=[("time", float), ("distance", float)]
-                     + [(k, est.dtype[k]) for k in OUTPUTS])
+                     + [(k, est.dtype[k]) for k in OUTPUTS] + [(k, float) for k in extra])
     table["distance"] = d
     for k in ("time", *OUTPUTS):
         table[k] = est[k]
+    if smooth:
+        from .smoothing import smooth_default
+
+        ch = log.channels  # as the FMU took them: step k's measurements at its end, its speed at its start
+        sm = smooth_default(*(ch[c][1:] for c in MEASURED), ch["vehicle_speed"][:-1], parameters, log.step)
+        table["road_height_smooth"] = np.r_[est["road_height_est"][0], sm["road_height_est"]]
+        table["road_height_smooth_std"] = np.r_[est["road_height_std"][0], sm["road_height_std"]]
+    iri = iri_table(d, table["road_height_smooth" if smooth else "road_height_est"], segment)
     rows = np.empty(len(iri), dtype=[("start_m", float), ("end_m", float), ("iri_m_per_km", float)])
     for j, k in enumerate(rows.dtype.names):
         rows[k] = iri[:, j]
@@ -489,6 +503,9 @@ def add_parser(sub: argparse._SubParsersAction, dist: Path = DIST) -> None:
                                                      "k_s, k_t, c_s, ...; docs/fmu-interface.md)")
     p.add_argument("--segment", type=float, default=100.0, help="length of the IRI segments in m (default 100)")
     p.add_argument("--dist", default=str(dist), help="folder with the FMUs (default dist/)")
+    p.add_argument("--smooth", action="store_true",
+                   help="also the offline RTS smoother's road and its std (the default estimator only); "
+                        "the IRI and the report of the smoothed profile")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=main)
 
@@ -497,6 +514,6 @@ def main(args: argparse.Namespace) -> int:
     """Run ``estimate`` with parsed arguments; print the summary."""
     keys = ("time", *CHANNELS)
     lines = estimate(args.log, args.out, parse_pairs(args.map, "--map", keys), parse_pairs(args.unit, "--unit", keys),
-                     args.vehicle, args.segment, args.dist, args.quiet)
+                     args.vehicle, args.segment, args.dist, args.quiet, args.smooth)
     print("\n".join(lines))
     return 0

@@ -287,3 +287,27 @@ def test_refused_mdf_files(capsys, dist, logs, tmp_path):
     assert code == 1 and "not a readable MDF file" in err and err.count("\n") == 1, err
     assert not (tmp_path / "out").exists()
     gc.collect()
+
+
+def test_smooth_adds_the_smoothed_road_with_an_honest_std(capsys, dist, runs, logs, tmp_path):
+    """--smooth on the 1 ms log (with its stop): the causal columns unchanged, the smoothed road's
+    HP error well below the causal one's, its ±2σ covering the error it has against what it
+    estimates, and the IRI of the smoothed profile."""
+    log = logs[0.001]
+    code, text, err = estimate(capsys, dist, write_log(tmp_path / "log.csv", log), tmp_path / "out", "--smooth")
+    assert code == 0, err
+    est = read_csv(tmp_path / "out" / "estimates.csv")
+    assert est.dtype.names[-2:] == ("road_height_smooth", "road_height_smooth_std")
+    plain = read_csv(runs[0.001][0] / "estimates.csv")
+    for k in plain.dtype.names:
+        assert np.array_equal(est[k], plain[k]), k
+    t = est["time"]
+    causal = metrics.road_scores(t, est["road_height_est"], log["road"], est["road_height_std"],
+                                 warmup=metrics.warmup_for(t))
+    smooth = metrics.road_scores(t, est["road_height_smooth"], log["road"], est["road_height_smooth_std"],
+                                 warmup=metrics.warmup_for(t))
+    assert smooth["err_std_hp_pct"] < 0.85 * causal["err_std_hp_pct"], (smooth, causal)
+    assert 0.9 <= smooth["coverage_2sigma"] <= 1.0, smooth
+    truth = true_iri(5, log["distance"][-1])
+    iri = read_csv(tmp_path / "out" / "iri.csv")["iri_m_per_km"]
+    assert np.all(np.abs(iri / truth - 1) < 0.15), (iri, truth)
