@@ -13,6 +13,7 @@ from __future__ import annotations
 import datetime
 import math
 import os
+import sys
 import uuid
 from xml.etree.ElementTree import Element, SubElement, tostring
 
@@ -53,7 +54,11 @@ class ContractSlave(Fmi2Slave):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self.contract: tuple[Var, ...] = CONTRACTS[type(self).__name__]
-        self._refusal: str | None = None
+        # why doStep refuses (None: it steps): until initialization ends, then refused
+        # parameters or a failed core
+        self._refusal: str | None = "it is not initialized: fmi2ExitInitializationMode first"
+        # the longest step, finite so that one comparison also refuses an infinite step
+        self._max_step = min(MAX_STEP[type(self).__name__], sys.float_info.max)
         self._checked_inputs: list[Var] = []
         # value reference -> attribute name, per type: the fast accessors below
         self._names: dict[str, dict[int, str]] = {t: {} for t in _TYPES}
@@ -164,14 +169,11 @@ class ContractSlave(Fmi2Slave):
         if self._refusal is not None:
             self.log(f"{type(self).__name__} cannot step: {self._refusal}", Fmi2Status.error)
             return False
-        longest = MAX_STEP[type(self).__name__]
-        if not (0 < step_size <= longest and math.isfinite(step_size)):
+        if not 0 < step_size <= self._max_step:
+            longest = MAX_STEP[type(self).__name__]
             bound = f"{longest:g}]" if math.isfinite(longest) else "inf)"
             self.log(f"communication step size = {step_size!r} s is outside the allowed range (0, {bound} s",
                      Fmi2Status.error)
-            return False
-        if any(getattr(self, n, None) is None for n in self.state_attributes):
-            self.log(f"{type(self).__name__} cannot step before exitInitializationMode", Fmi2Status.error)
             return False
         problems = self.input_problems()
         if problems:
@@ -195,10 +197,11 @@ class ContractSlave(Fmi2Slave):
         """Every variable and the whole core (filter x and P, RLS matrices, road position, plant
         states, noise generator) as plain data; ``{"invalid": reason}`` if it cannot be written."""
         try:
-            return fmu_state.encode({v.name: getattr(self, v.name) for v in self.contract}, self._refusal,
-                                    {n: getattr(self, n, None) for n in self.state_attributes if n not in self.derived_attributes},
-                                    type(self).__name__,
-                                    fmu_state.table(self.state_classes))
+            steps = self._refusal is None  # an instance that does not step saves no core
+            core = {n: getattr(self, n) if steps else None
+                    for n in self.state_attributes if n not in self.derived_attributes}
+            return fmu_state.encode({v.name: getattr(self, v.name) for v in self.contract}, self._refusal, core,
+                                    type(self).__name__, fmu_state.table(self.state_classes))
         except Exception as e:  # noqa: BLE001 - never raised into the host
             self.log(f"{type(self).__name__}: the FMU state cannot be saved: {e}", Fmi2Status.error)
             return {"invalid": f"saved by a {type(self).__name__} that could not write its state: {e}"}
@@ -256,16 +259,16 @@ class ContractSlave(Fmi2Slave):
         saved = [n for n in self.state_attributes if n not in self.derived_attributes]
         if not isinstance(nodes, dict) or set(nodes) != set(saved):
             raise Err(f"core: holds {sorted(nodes) if isinstance(nodes, dict) else nodes!r}, not {sorted(saved)}")
+        if refusal is not None:  # an instance that does not step: its core, if any, is not restored
+            out.update({n: None for n in self.state_attributes})
+            return out
         core = fmu_state.decode(nodes, fmu_state.table(self.state_classes))
-        if refusal is not None or any(v is None for v in core.values()):
-            if any(v is not None for v in core.values()):
-                raise Err("core: a state without its core (refused or not initialized) holds part of one")
-            core.update({n: None for n in self.derived_attributes})
-        else:
-            ref = self._template(out)
-            for name in saved:
-                fmu_state.check_against(core[name], ref[name], f"core.{name}")
-            core.update({n: ref[n] for n in self.derived_attributes})
+        if (missing := sorted(n for n, v in core.items() if v is None)):
+            raise Err(f"core: {missing} missing in the state of an instance that steps")
+        ref = self._template(out)
+        for name in saved:
+            fmu_state.check_against(core[name], ref[name], f"core.{name}")
+        core.update({n: ref[n] for n in self.derived_attributes})
         out.update(core)
         return out
 
