@@ -61,6 +61,7 @@ from scipy.signal import butter
 from ..plant import iso8608
 from ..plant.iri import SEGMENT_RANGE, IRIMeter
 from ..plant.quarter_car import NOISE_STD_RANGES
+from ..plant.sensors import SENSOR_ERROR_RANGES, DelayLine, SensorErrors
 from ..plant.step_size import same_step
 from ..plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_DAMPER
 from ..plant.vehicle import Vehicle, VEHICLE_RANGES, check_range
@@ -210,6 +211,16 @@ class EstimatorConfig:
     imm_mass_max: float = 550.0
     imm_models: int = 7
     imm_stay: float = 0.999
+    # the known calibration of the sensors (plant/sensors.py): removed from every sample before
+    # anything else sees it; the delays are aligned by delaying the other channels
+    deflection_offset: float = 0.0  # m
+    acc_sprung_bias: float = 0.0  # m/s^2
+    acc_unsprung_bias: float = 0.0  # m/s^2
+    acc_sprung_scale: float = 1.0
+    acc_unsprung_scale: float = 1.0
+    acc_sprung_delay: float = 0.0  # s
+    acc_unsprung_delay: float = 0.0  # s
+    deflection_delay: float = 0.0  # s
     # everything else is a fixed choice, with its reason, in tuning.py
     tuning: Tuning = TUNING
 
@@ -239,6 +250,8 @@ class EstimatorConfig:
         for name, (lo, hi) in NOISE_STD_RANGES.items():
             msgs.append(check_range(name, float(getattr(self, name)), lo, hi))
         msgs.append(check_range("iri_segment", float(self.iri_segment), *SEGMENT_RANGE))
+        for name, (lo, hi) in SENSOR_ERROR_RANGES.items():
+            msgs.append(check_range(name, float(getattr(self, name)), lo, hi))
         msgs += self.tuning.problems()
         msgs += vb_problems(self)
         if codes == []:
@@ -267,6 +280,11 @@ class SuspensionEstimator:
         if problems:
             raise ValueError("; ".join(problems))
         self.cfg = cfg
+        self.sensors = SensorErrors.of(cfg)
+        lag = max(self.sensors.delays)
+        self._aligners = ([DelayLine(lag - d) for d in self.sensors.delays]
+                          if not self.sensors.none else None)
+        self._sample_time = 0.0  # s, the clock of the aligners
         # codes beyond the KF family: an estimator of the registry (interface.py), composed here
         factory = composed_factory(int(cfg.road_estimator), int(cfg.mass_estimator))
         self.composed: RoadFilter | None = None if factory is None else factory(cfg)
@@ -777,6 +795,11 @@ class SuspensionEstimator:
         cfg = self.cfg
         if not (math.isfinite(h) and h > 0):
             raise ValueError(f"step size h = {h!r} must be finite and > 0")
+        if self._aligners is not None:  # the known calibration (EstimatorConfig)
+            self._sample_time += h
+            t = self._sample_time
+            acc_sprung, acc_unsprung, deflection = self.sensors.remove(
+                *(line.push(t, float(v)) for line, v in zip(self._aligners, (acc_sprung, acc_unsprung, deflection))))
         if self.composed is not None:
             return self._step_composed(acc_sprung, acc_unsprung, deflection, speed, h)
         if self.model is not None:

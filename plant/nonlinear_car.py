@@ -23,6 +23,7 @@ import math
 import numpy as np
 
 from .quarter_car import QuarterCar, SensorNoise
+from .sensors import SensorErrors
 from .suspension_forces import DEFAULT_BUMP_STOPS, G, AirSpring, BumpStops, PiecewiseDamper, tyre_force
 from .vehicle import Vehicle
 
@@ -103,8 +104,8 @@ class NonlinearQuarterCar(QuarterCar):
 
     def __init__(self, vehicle: Vehicle, spring: AirSpring | None = None, damper: PiecewiseDamper | None = None,
                  stops: BumpStops = DEFAULT_BUMP_STOPS, noise: SensorNoise = SensorNoise(), noise_seed: int = 1,
-                 acc_sampling: int = 0):
-        super().__init__(vehicle, noise, noise_seed, acc_sampling)
+                 acc_sampling: int = 0, errors: SensorErrors = SensorErrors()):
+        super().__init__(vehicle, noise, noise_seed, acc_sampling, errors)
         self.spring, self.damper, self.stops = spring, damper, stops
         self._c: tuple = ()
         self._m_s: float | None = None
@@ -185,7 +186,7 @@ class NonlinearQuarterCar(QuarterCar):
         self.dissipated = e
         self.tire_contact, self.bump_stop = contact, stop
         self.acc_true = acc
-        self._measure(acc, z_s, z_u)
+        self._measure(acc, z_s, z_u, h)
 
     @property
     def tire_force(self) -> float:

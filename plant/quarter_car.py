@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import expm
 
+from .sensors import DelayLine, SensorErrors
 from .step_size import same_step
 from .vehicle import Vehicle
 
@@ -72,9 +73,11 @@ class QuarterCar:
     """
 
     def __init__(self, vehicle: Vehicle, noise: SensorNoise = SensorNoise(), noise_seed: int = 1,
-                 acc_sampling: int = 0):
+                 acc_sampling: int = 0, errors: SensorErrors = SensorErrors()):
         self.vehicle = vehicle
         self.noise = noise
+        self.errors = errors  # offsets, biases, gains and delays of the sensors (plant/sensors.py)
+        self._start_delays()
         self.acc_sampling = int(acc_sampling)
         self.rng = np.random.default_rng(noise_seed)
         self.x = np.zeros(4)
@@ -93,7 +96,18 @@ class QuarterCar:
         self.x = np.array([road_height, 0.0, road_height, 0.0])
         self.road = road_height
         self.acc_true = (0.0, 0.0)
-        self.measured = (0.0, 0.0, 0.0)
+        self.measured = self.errors.apply(0.0, 0.0, 0.0)
+        self._start_delays()
+
+    def _start_delays(self) -> None:
+        """Empty delay lines holding the car at rest at time 0 (accelerations and deflection 0):
+        until a channel's delay has passed it reports the rest it saw before the start, not the
+        first step's values undelayed."""
+        self._delays = [DelayLine(d) for d in self.errors.delays]
+        self.time = 0.0  # s since settle, the clock of the delays
+        if not self.errors.none:
+            for line in self._delays:
+                line.push(0.0, 0.0)
 
     def _matrices(self, m_s: float, h: float) -> None:
         if self._key != (m_s, h):
@@ -124,10 +138,11 @@ class QuarterCar:
             acc = (r1[0] * z_s + r1[1] * v_s + r1[2] * z_u + r1[3] * v_u + b1 * road_height,
                    r3[0] * z_s + r3[1] * v_s + r3[2] * z_u + r3[3] * v_u + b3 * road_height)
         self.acc_true = acc
-        self._measure(acc, z_s, z_u)
+        self._measure(acc, z_s, z_u, h)
 
-    def _measure(self, acc: tuple[float, float], z_s: float, z_u: float) -> None:
-        """Add the seeded sensor noise to the true accelerations and deflection."""
+    def _measure(self, acc: tuple[float, float], z_s: float, z_u: float, h: float) -> None:
+        """The sensors' readings of the true accelerations and deflection: their errors
+        (``errors``: gain, bias, offset, then the delay) and the seeded noise."""
         # the noise is drawn in blocks: the same numbers as one draw of 3 per step
         if self._noise_i >= len(self._noise):
             self._noise = self.rng.standard_normal((256, 3)).tolist()
@@ -135,8 +150,12 @@ class QuarterCar:
         e = self._noise[self._noise_i]
         self._noise_i += 1
         n = self.noise
-        self.measured = (acc[0] + n.acc_sprung * e[0], acc[1] + n.acc_unsprung * e[1],
-                         z_s - z_u + n.deflection * e[2])
+        clean = (acc[0], acc[1], z_s - z_u)
+        if not self.errors.none:
+            self.time += h
+            clean = self.errors.apply(*(line.push(self.time, v) for line, v in zip(self._delays, clean)))
+        self.measured = (clean[0] + n.acc_sprung * e[0], clean[1] + n.acc_unsprung * e[1],
+                         clean[2] + n.deflection * e[2])
 
     @property
     def tire_deflection(self) -> float:

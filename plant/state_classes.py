@@ -7,10 +7,11 @@ from .half_car import HalfCar, HalfCarParams
 from .iri import IRIMeter
 from .nonlinear_car import NonlinearQuarterCar
 from .quarter_car import QuarterCar, SensorNoise
+from .sensors import DelayLine, SensorErrors
 from .suspension_forces import AirSpring, BumpStops, PiecewiseDamper
 from .vehicle import Vehicle
 
-QUARTER_CAR_STATE: tuple[type, ...] = (QuarterCar, NonlinearQuarterCar, Vehicle, SensorNoise, AirSpring,
-                                       PiecewiseDamper, BumpStops)
+QUARTER_CAR_STATE: tuple[type, ...] = (QuarterCar, NonlinearQuarterCar, Vehicle, SensorNoise, SensorErrors,
+                                       DelayLine, AirSpring, PiecewiseDamper, BumpStops)
 HALF_CAR_STATE: tuple[type, ...] = (HalfCar, HalfCarParams, SensorNoise)
 ISO_ROAD_STATE: tuple[type, ...] = (IRIMeter,)

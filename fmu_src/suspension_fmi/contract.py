@@ -14,6 +14,7 @@ from ..plant.half_car import DEFAULT_HALF_CAR, HALF_CAR_RANGES
 from ..plant.iri import SEGMENT_RANGE
 from ..plant.profile_formats import MAX_POINTS
 from ..plant.quarter_car import NOISE_STD_RANGES, SensorNoise
+from ..plant.sensors import SENSOR_ERROR_RANGES, SensorErrors
 from ..plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_BUMP_STOPS, DEFAULT_DAMPER, FORCE_RANGES
 from ..plant.vehicle import DEFAULT_VEHICLE, VEHICLE_RANGES
 
@@ -121,6 +122,32 @@ def _vehicle_params(prefix: str) -> list[Var]:
     ]
 
 
+def _sensor_params(plant: bool) -> list[Var]:
+    """The sensor errors of plant/sensors.py: what the plant's sensors add (``plant``), or the
+    calibration the estimator removes (the same names, so that equal values cancel)."""
+    texts = {
+        "deflection_offset": ("m", "zero error of the deflection sensor"),
+        "acc_sprung_bias": ("m/s2", "bias (zero error) of the sprung-mass accelerometer"),
+        "acc_unsprung_bias": ("m/s2", "bias (zero error) of the unsprung-mass accelerometer"),
+        "acc_sprung_scale": ("1", "gain of the sprung-mass accelerometer (measured / true)"),
+        "acc_unsprung_scale": ("1", "gain of the unsprung-mass accelerometer (measured / true)"),
+        "acc_sprung_delay": ("s", "lag of the sprung-mass acceleration channel (logger skew)"),
+        "acc_unsprung_delay": ("s", "lag of the unsprung-mass acceleration channel (logger skew)"),
+        "deflection_delay": ("s", "lag of the deflection channel (logger skew)"),
+    }
+    if plant:
+        tail = {"m": ", added to the measured deflection", "m/s2": ", added to the measurement",
+                "1": "", "s": ": the channel reports the value this long ago (linear interpolation)"}
+    else:
+        tail = {"m": " the estimator removes (known calibration)", "m/s2": " the estimator removes (known calibration)",
+                "1": " the estimator divides out (known calibration)",
+                "s": " the estimator aligns (known): the other channels are delayed to match, and the estimates "
+                     "refer to the largest lag ago"}
+    default = SensorErrors()
+    return [_real_param(name, unit, getattr(default, name), text + tail[unit], SENSOR_ERROR_RANGES[name])
+            for name, (unit, text) in texts.items()]
+
+
 def _force_params() -> list[Var]:
     """The nonlinear plant's parameters (spring_model or damper_model = 1): defaults and ranges from
     plant/suspension_forces.py."""
@@ -226,6 +253,8 @@ QUARTER_CAR: tuple[Var, ...] = (
     Var("bump_stop", "output", "Integer", None, None,
         "0 = stops free, 1 = bump (compression) stop, 2 = rebound stop touched during the step "
         "(nonlinear plant; the linear plant has none)"),
+    # a real car's sensor errors (plant/sensors.py); at the end, so that the value references above stay
+    *_sensor_params(plant=True),
 )
 
 # The suspension laws the nonlinear estimators (road_estimator 3, 5; mass_estimator 3) are told: the
@@ -306,6 +335,8 @@ SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
     Var("nis", "output", "Real", "1", None, "normalised innovation squared of the last update (filter health)"),
     Var("status", "output", "Integer", None, None,
         "0 = ok, 1 = last measurement rejected (non-finite or outlier), 2 = filter re-initialised"),
+    # the known calibration of the sensors (plant/sensors.py); at the end, so that the value references stay
+    *_sensor_params(plant=False),
 )
 
 # HalfCar: one side of a mid-size sedan (docs/half-car.md gives the reasoning behind every default)

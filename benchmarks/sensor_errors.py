@@ -1,0 +1,147 @@
+"""Real sensor errors on the plain-Python cores (no FMU): what each error does to the road and mass
+estimates of the KF (road_estimator 0) and the default (2), scored both as the contract defines
+road_height_est today (against harness.metrics.reference_road) and in a distance band (the error
+high-passed in distance, as inertial profilers report elevation), which shows where an error
+sits in wavelength. docs/real-sensors.md quotes it.
+
+    .venv/bin/python benchmarks/sensor_errors.py [--plant exact|nonlinear] [--classes C] [--speeds 40]
+        [--seeds 1] [--duration 30] [--estimators "KF (0);default"] [--cases ideal,...] [--debias]
+
+Cases: each error of plant/sensors.py alone at the end of the range the estimator is meant to
+absorb (docs/real-sensors.md), and all together. Band errors: the estimate's error through a
+causal second-order Butterworth high-pass in distance at 30 m and 91.44 m (300 ft) wavelength
+(at constant speed, the same filter in time at speed / wavelength). ``--debias`` feeds the
+estimator accelerations from which their running mean (over the elapsed time for 20 s, then
+exponentially with 100 s) was removed: a model-free bias removal, since a body's vertical
+acceleration averages to zero, and what it costs.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+from scipy.signal import butter, lfilter
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from suspension_estimation.estimators import SuspensionEstimator  # noqa: E402
+from suspension_estimation.harness.metrics import road_scores  # noqa: E402
+from suspension_estimation.plant import iso8608  # noqa: E402
+from suspension_estimation.plant.nonlinear_car import NonlinearQuarterCar  # noqa: E402
+from suspension_estimation.plant.quarter_car import QuarterCar, SensorNoise  # noqa: E402
+from suspension_estimation.plant.road import SyntheticRoad  # noqa: E402
+from suspension_estimation.plant.sensors import SensorErrors  # noqa: E402
+from suspension_estimation.plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_DAMPER  # noqa: E402
+from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE  # noqa: E402
+
+H = 1e-3  # s
+WARMUP = 10.0  # s
+BANDS = (30.0, 91.44)  # m
+CASES: dict[str, dict[str, float]] = {
+    "ideal": {},
+    "deflection +5 mm": {"deflection_offset": 5e-3},
+    "deflection -5 mm": {"deflection_offset": -5e-3},
+    "body bias +0.1": {"acc_sprung_bias": 0.1},
+    "body bias +0.01": {"acc_sprung_bias": 0.01},
+    "wheel bias +0.5": {"acc_unsprung_bias": 0.5},
+    "body scale 1.03": {"acc_sprung_scale": 1.03},
+    "wheel scale 1.03": {"acc_unsprung_scale": 1.03},
+    "wheel 2 ms late": {"acc_unsprung_delay": 0.002},
+    "all": {"deflection_offset": 5e-3, "acc_sprung_bias": 0.1, "acc_unsprung_bias": 0.5,
+            "acc_sprung_scale": 1.03, "acc_unsprung_scale": 1.03, "acc_unsprung_delay": 0.002},
+}
+ESTIMATORS = {"KF (0)": {"road_estimator": 0}, "default": {}}
+
+
+def drive(plant: str, errors: SensorErrors, cls: int, speed: float, duration: float, seed: int):
+    """(t, measurements, true road, the vehicle the estimator is told)."""
+    road = SyntheticRoad(iso8608.class_psd_n0(cls), seed=seed)
+    if plant == "nonlinear":
+        car = NonlinearQuarterCar(DEFAULT_VEHICLE, DEFAULT_AIR_SPRING, DEFAULT_DAMPER, noise=SensorNoise(),
+                                  noise_seed=1000 + seed, errors=errors)
+        told = car.linearisation()
+    else:
+        car = QuarterCar(DEFAULT_VEHICLE, SensorNoise(), noise_seed=1000 + seed, errors=errors)
+        told = DEFAULT_VEHICLE
+    car.settle(road.height(0.0))
+    n = int(round(duration / H))
+    meas, zr = np.empty((n, 3)), np.empty(n)
+    for k in range(n):
+        car.step(road.height(speed * k * H), H)
+        meas[k], zr[k] = car.measured, car.road
+    return np.arange(1, n + 1) * H, meas, zr, told
+
+
+def debias(x: np.ndarray, t0: float = 20.0, tau: float = 100.0) -> np.ndarray:
+    """x minus its running mean: over the elapsed time until t0 s, then exponential with tau s."""
+    out, m = np.empty_like(x), 0.0
+    for k, v in enumerate(x):
+        m += (H / min((k + 1) * H, t0) if (k + 1) * H < t0 else H / tau) * (v - m)
+        out[k] = v - m
+    return out
+
+
+def band_rms_mm(err: np.ndarray, speed: float, wavelength: float, keep: np.ndarray) -> float:
+    b, a = butter(2, speed / wavelength, btype="highpass", fs=1.0 / H)
+    return float(1e3 * np.sqrt(np.mean(lfilter(b, a, err)[keep] ** 2)))
+
+
+def run(t, meas, zr, told, speed: float, **kw) -> dict:
+    est = SuspensionEstimator(m_s_nominal=told.m_s, m_u=told.m_u, k_s=told.k_s, k_t=told.k_t, c_s=told.c_s, **kw)
+    out = np.array([[o["road_height_est"], o["road_height_std"], o["sprung_mass_est"]]
+                    for o in (est.step(z[0], z[1], z[2], speed, H) for z in meas)])
+    keep = t >= WARMUP
+    s = road_scores(t, out[:, 0], zr, out[:, 1], warmup=WARMUP)
+    for lam in BANDS:
+        s[f"band {lam:g} m"] = band_rms_mm(out[:, 0] - zr, speed, lam, keep)
+    s["std_mm"] = float(1e3 * np.median(out[keep, 1]))
+    s["mass_pct"] = float(100 * (np.mean(out[keep, 2]) / told.m_s - 1))
+    return s
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--plant", default="exact", choices=("exact", "nonlinear"))
+    ap.add_argument("--classes", default="C")
+    ap.add_argument("--speeds", default="40", help="km/h")
+    ap.add_argument("--seeds", type=int, default=1)
+    ap.add_argument("--duration", type=float, default=30.0, help="s (the first 10 s are not scored)")
+    ap.add_argument("--estimators", default=";".join(ESTIMATORS))
+    ap.add_argument("--cases", default=",".join(CASES))
+    ap.add_argument("--debias", action="store_true", help="remove the accelerations' running mean first")
+    a = ap.parse_args(argv)
+    cases = [c.strip() for c in a.cases.split(",")]
+    names = [n.strip() for n in a.estimators.split(";")]
+    bad = [c for c in cases if c not in CASES] + [n for n in names if n not in ESTIMATORS]
+    if bad or a.duration <= WARMUP or a.seeds < 1:
+        print(f"error: unknown cases or estimators {bad}, or --duration <= {WARMUP} s, or --seeds < 1",
+              file=sys.stderr)
+        return 1
+    print(f"plant {a.plant}{', accelerations debiased' if a.debias else ''}; means over {a.seeds} seed(s)\n")
+    print("| ISO | km/h | case | estimator | HP % | raw rms mm | std mm | cov | "
+          + " | ".join(f"band {lam:g} m mm" for lam in BANDS) + " | mass % |")
+    print("|---|---|---|---|---|---|---|---|" + "---|" * len(BANDS) + "---|")
+    for letter in a.classes.split(","):
+        cls = "ABCDEFGH".index(letter.strip().upper()) + 1
+        for kmh in (float(v) for v in a.speeds.split(",")):
+            v = kmh / 3.6
+            for case in cases:
+                runs = [drive(a.plant, SensorErrors(**CASES[case]), cls, v, a.duration, seed)
+                        for seed in range(1, a.seeds + 1)]
+                if a.debias:
+                    for _, meas, _, _ in runs:
+                        meas[:, 0], meas[:, 1] = debias(meas[:, 0]), debias(meas[:, 1])
+                for name in names:
+                    ss = [run(*r, v, **ESTIMATORS[name]) for r in runs]
+                    m = {k: float(np.mean([s[k] for s in ss])) for k in ss[0]}
+                    print(f"| {letter.upper()} | {kmh:g} | {case} | {name} | {m['err_std_hp_pct']:.2f} | "
+                          f"{m['rmse_raw_mm']:.1f} | {m['std_mm']:.1f} | {m['coverage_2sigma']:.2f} | "
+                          + " | ".join(f"{m[f'band {lam:g} m']:.1f}" for lam in BANDS)
+                          + f" | {m['mass_pct']:+.2f} |", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
