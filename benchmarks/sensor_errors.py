@@ -27,7 +27,7 @@ from scipy.signal import butter, lfilter
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from suspension_estimation.estimators import SuspensionEstimator  # noqa: E402
-from suspension_estimation.harness.metrics import road_scores  # noqa: E402
+from suspension_estimation.harness.metrics import reference_profile, road_scores  # noqa: E402
 from suspension_estimation.plant import iso8608  # noqa: E402
 from suspension_estimation.plant.nonlinear_car import NonlinearQuarterCar  # noqa: E402
 from suspension_estimation.plant.quarter_car import QuarterCar, SensorNoise  # noqa: E402
@@ -90,12 +90,16 @@ def band_rms_mm(err: np.ndarray, speed: float, wavelength: float, keep: np.ndarr
 
 def run(t, meas, zr, told, speed: float, **kw) -> dict:
     est = SuspensionEstimator(m_s_nominal=told.m_s, m_u=told.m_u, k_s=told.k_s, k_t=told.k_t, c_s=told.c_s, **kw)
-    out = np.array([[o["road_height_est"], o["road_height_std"], o["sprung_mass_est"]]
-                    for o in (est.step(z[0], z[1], z[2], speed, H) for z in meas)])
+    out = np.array([[o["road_height_est"], o["road_height_std"], o["sprung_mass_est"], o["road_profile_est"],
+                     o["road_profile_std"]] for o in (est.step(z[0], z[1], z[2], speed, H) for z in meas)])
     keep = t >= WARMUP
     s = road_scores(t, out[:, 0], zr, out[:, 1], warmup=WARMUP)
     for lam in BANDS:
         s[f"band {lam:g} m"] = band_rms_mm(out[:, 0] - zr, speed, lam, keep)
+    e = (out[:, 3] - reference_profile(speed * t, zr, est.cfg.profile_cutoff))[keep]
+    s["profile_mm"] = float(1e3 * np.sqrt(np.mean(e ** 2)))
+    s["profile_std_mm"] = float(1e3 * np.median(out[keep, 4]))
+    s["profile_cov"] = float(np.mean(np.abs(e) <= 2 * out[keep, 4]))
     s["std_mm"] = float(1e3 * np.median(out[keep, 1]))
     s["mass_pct"] = float(100 * (np.mean(out[keep, 2]) / told.m_s - 1))
     return s
@@ -121,8 +125,8 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     print(f"plant {a.plant}{', accelerations debiased' if a.debias else ''}; means over {a.seeds} seed(s)\n")
     print("| ISO | km/h | case | estimator | HP % | raw rms mm | std mm | cov | "
-          + " | ".join(f"band {lam:g} m mm" for lam in BANDS) + " | mass % |")
-    print("|---|---|---|---|---|---|---|---|" + "---|" * len(BANDS) + "---|")
+          + " | ".join(f"band {lam:g} m mm" for lam in BANDS) + " | profile err mm | profile std mm | profile cov | mass % |")
+    print("|---|---|---|---|---|---|---|---|" + "---|" * len(BANDS) + "---|---|---|---|")
     for letter in a.classes.split(","):
         cls = "ABCDEFGH".index(letter.strip().upper()) + 1
         for kmh in (float(v) for v in a.speeds.split(",")):
@@ -139,6 +143,7 @@ def main(argv: list[str] | None = None) -> int:
                     print(f"| {letter.upper()} | {kmh:g} | {case} | {name} | {m['err_std_hp_pct']:.2f} | "
                           f"{m['rmse_raw_mm']:.1f} | {m['std_mm']:.1f} | {m['coverage_2sigma']:.2f} | "
                           + " | ".join(f"{m[f'band {lam:g} m']:.1f}" for lam in BANDS)
+                          + f" | {m['profile_mm']:.2f} | {m['profile_std_mm']:.2f} | {m['profile_cov']:.2f}"
                           + f" | {m['mass_pct']:+.2f} |", flush=True)
     return 0
 

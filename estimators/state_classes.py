@@ -4,6 +4,7 @@ to hold is added here; saving a state that holds another fails and says which.""
 from __future__ import annotations
 
 from ..plant.iri import IRIMeter
+from ..plant.profile_band import DistanceHighpass
 from ..plant.sensors import DelayLine, SensorErrors
 from ..plant.suspension_forces import AirSpring, BumpStops, PiecewiseDamper
 from ..plant.vehicle import Vehicle
@@ -26,4 +27,5 @@ STATE_CLASSES: tuple[type, ...] = (
     RoadModel, MassEstimator, ForgettingRLS, StateVariableFilter, RoadClassifier, ResponseClassifier,
     IMM, MassIMM, MovingMassIMM, IMMRoad, MovingIMMRoad, VBAKF, VBRoadFilter, NonlinearModel, EKF, UKF,
     FilterpyUKF, _FilterpyEKF, DualObserver, NonlinearRoadFilter, UKFRoadFilter, DualObserverFilter,
-    Vehicle, IRIMeter, AirSpring, PiecewiseDamper, BumpStops, SensorErrors, DelayLine)
+    Vehicle, IRIMeter, AirSpring, PiecewiseDamper, BumpStops, SensorErrors, DelayLine,
+    DistanceHighpass)

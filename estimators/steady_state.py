@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..plant import iso8608
+from ..plant.profile_band import band_response
 from ..plant.quarter_car import discretise as plant_discretise
 from ..plant.quarter_car import state_matrices
 from ..plant.vehicle import DEFAULT_VEHICLE, Vehicle
@@ -169,6 +170,29 @@ def raw_error_variance(Phi, H, K, R, h: float, gd_n0: float, speed: float, vehic
         return float("nan")
     return float(S[row, row]) + road_error_variance(Phi, H, K, h, gd_n0, speed, vehicle, acc_sampling, row,
                                                     reference=reference)
+
+
+def band_error_variance(Phi, H, K, R, h: float, gd_n0: float, speed: float, cutoff: float,
+                        vehicle: Vehicle = DEFAULT_VEHICLE, acc_sampling: int = 0, row: int = 4,
+                        nf: int = 600) -> float:
+    """Steady-state variance (m^2) of the road-height error of the filter with gain K in the
+    distance band of plant.profile_band (the error high-passed in distance at ``cutoff`` m, at
+    ``speed`` m/s a high-pass in time at speed / cutoff Hz): the integral of |B|^2 (|T - 1|^2 S_r
+    + sum_i |F_i|^2 S_n,i) over frequency, with the ISO 8608 road PSD S_r of ``gd_n0`` and the
+    white sensor noises of R (one-sided PSD 2 h R_ii up to Nyquist), on nf log-spaced
+    frequencies from a twentieth of the band's corner. T and F_i as in ``road_error_variance``.
+    This is the error of ``road_profile_est`` when the vehicle is the model's."""
+    v = max(abs(float(speed)), 0.1)
+    f = np.geomspace(0.05 * v / cutoff, 0.999 / (2 * h), nf)
+    zinv = np.exp(-2j * np.pi * f * h)
+    G = plant_transfer(vehicle, h, zinv, acc_sampling)
+    e = np.zeros((1, Phi.shape[0]))
+    e[0, row] = 1.0
+    F = filter_transfer(Phi, H, K, zinv, e)[:, 0, :]
+    T = np.einsum("fi,fi->f", F, G[:, :K.shape[1]])
+    Sn = 2 * h * np.diag(R)
+    S = np.abs(T - 1) ** 2 * iso_psd_time(f, gd_n0, v) + (np.abs(F) ** 2 * Sn).sum(1)
+    return float(np.trapezoid(np.abs(band_response(f / v, cutoff)) ** 2 * S, f))
 
 
 def analyse(Phi, H, K, R_true, h, gd_n0, speed, vehicle=DEFAULT_VEHICLE, road_row=None,

@@ -60,6 +60,7 @@ from scipy.signal import butter
 
 from ..plant import iso8608
 from ..plant.iri import SEGMENT_RANGE, IRIMeter
+from ..plant.profile_band import CUTOFF_RANGE, PROFILE_CUTOFF, DistanceHighpass
 from ..plant.quarter_car import NOISE_STD_RANGES
 from ..plant.sensors import SENSOR_ERROR_RANGES, DelayLine, SensorErrors
 from ..plant.step_size import same_step
@@ -76,15 +77,18 @@ from .model import (IVR, IVS, IVU, IZR, IZS, IZU, N_STATES, N_STATES_AVG, Discre
                     reference_step_response)
 from .road_class import RoadClassifier
 from .start_offset import StartOffset
-from .steady_state import raw_error_variance, reference_lag
+from .steady_state import band_error_variance, raw_error_variance, reference_lag
 from .tuning import TUNING, TUNING_FIELDS, Tuning
 from .vb_akf import vb_problems
 
 OUTPUTS = ("road_height_est", "road_velocity_est", "road_height_std", "z_s_est", "v_s_est",
            "z_u_est", "v_u_est", "susp_deflection_est", "tire_deflection_est", "sprung_mass_est", "mass_std",
-           "road_class_est", "nis", "status", "iri_est")
+           "road_class_est", "nis", "status", "iri_est", "road_profile_est", "road_profile_std")
 
 STATUS_OK, STATUS_REJECTED, STATUS_REINIT = 0, 1, 2
+# the car's motion, from the speed each step (Tuning.standstill_speed): standing, the mass
+# regression is not fed and the road profile holds
+MOVING, STANDING = "moving", "standing"
 # road_estimator 2: this many anchor restarts within this many seconds and the anchor is no longer
 # used (linear plant: 0-7 restarts in 40 s with a vehicle 30 % off; air spring + asymmetric
 # damper: ~30 per second)
@@ -200,6 +204,9 @@ class EstimatorConfig:
     damper_c_rebound_high: float = DEFAULT_DAMPER.damper_c_rebound_high  # N.s/m
     damper_c_compression_high: float = DEFAULT_DAMPER.damper_c_compression_high  # N.s/m
     iri_segment: float = 100.0  # m, segments of the IRI of the road estimate (plant/iri.py)
+    # m, long-wavelength cut-off of road_profile_est, the profile high-passed in distance
+    # (plant/profile_band.py)
+    profile_cutoff: float = PROFILE_CUTOFF
     # road_estimator 4 (VB-AKF, vb_akf.VBRoadFilter): fixed-point iterations per step, forgetting
     # factor of the R posterior, weight of the nominal prediction in the PECM prior (0 = R only)
     vb_iterations: int = 6
@@ -250,6 +257,7 @@ class EstimatorConfig:
         for name, (lo, hi) in NOISE_STD_RANGES.items():
             msgs.append(check_range(name, float(getattr(self, name)), lo, hi))
         msgs.append(check_range("iri_segment", float(self.iri_segment), *SEGMENT_RANGE))
+        msgs.append(check_range("profile_cutoff", float(self.profile_cutoff), *CUTOFF_RANGE))
         for name, (lo, hi) in SENSOR_ERROR_RANGES.items():
             msgs.append(check_range(name, float(getattr(self, name)), lo, hi))
         msgs += self.tuning.problems()
@@ -343,6 +351,12 @@ class SuspensionEstimator:
                                 and self.mass_est.estimate_damping)
         self.classifier = RoadClassifier(gain=cfg.tuning.class_gain)
         self.iri = IRIMeter(cfg.iri_segment, start=0.0)  # raises a ValueError naming iri_segment
+        # road_profile_est: the road estimate's increments while moving, high-passed in distance
+        self.motion = STANDING
+        self._band = DistanceHighpass(cfg.profile_cutoff)
+        self._profile_u = 0.0  # m, the sum of the road estimate's increments while moving
+        self._profile_raw: float | None = None  # m, the road estimate of the last step
+        self._band_cache: tuple | None = None  # (model, class, ratio): see _band_ratio
         self.model: DiscreteModel | None = None
         self._model_key: tuple | None = None
         self._class_height_std: dict[int, float] = {}  # m, ISO road-height std per class
@@ -806,6 +820,7 @@ class SuspensionEstimator:
             h = same_step(h, self.model.h)
         if not math.isfinite(speed):
             speed = self.model.speed if self.model is not None else 0.0
+        self.motion = MOVING if abs(speed) >= cfg.tuning.standstill_speed else STANDING
         status = STATUS_OK
         vals = ((float(acc_sprung), float(acc_unsprung), float(deflection)) if cfg.tuning.use_deflection
                 else (float(acc_sprung), float(acc_unsprung)))
@@ -888,7 +903,7 @@ class SuspensionEstimator:
             a_use = acc_sprung if ok_a else float(self.model.H[0] @ kf.x)
             d_use = deflection if ok_d else float(src.x[IZS] - src.x[IZU])
             me.update(a_use, d_use, h, use=ok_a and ok_d and status != STATUS_REINIT
-                      and speed >= cfg.tuning.mass_min_speed)
+                      and self.motion == MOVING)
             if me.resets != self._resets_seen:  # a payload change detected
                 self._resets_seen = me.resets
                 if self._episode_closed():  # else: still part of the open one (e.g. the start)
@@ -1012,8 +1027,52 @@ class SuspensionEstimator:
         out["road_class_est"] = int(self.classifier.road_class)
         out["nis"] = float(kf.nis)  # of the last update (kept through rejected steps)
         out["status"] = status
-        out["iri_est"] = self.iri.update(self.distance, out["road_height_est"])
+        band_var = (p_zr * self._band_ratio() * (cfg.tuning.nonlinear_std_factor ** 2 if self._nonlinear else 1.0)
+                    if p_zr > 0.0 else math.inf)
+        self._profile(out, x[IZR], speed, h, band_var, status)
+        out["iri_est"] = self.iri.update(self.distance, out["road_profile_est"])
         return out
+
+    def _band_ratio(self) -> float:
+        """Steady-state variance of the road error in the distance band of road_profile_est
+        (steady_state.band_error_variance: the ISO road of the assumed class and the sensor
+        noise, the vehicle the model's) over the active filter's own P[z_r, z_r] (the anchor's,
+        or the force-error filter's once the anchor is dropped), so that the std follows P
+        through rejected samples and restarts. Recomputed (about 3 ms) when the model or the
+        class changes; 1 (the raw P, an upper bound) for MME&KF or without a fixed point."""
+        kf, m = (self.anchor, self.anchor_model) if self.anchor_trusted else (self.kf, self.model)
+        cls = self.assumed_class
+        hit = self._band_cache
+        if hit is not None and hit[0] is m and hit[1] == cls:
+            return hit[2]
+        sol = None if m is None else kf.stationary_solution
+        ratio = 1.0
+        if sol is not None and not isinstance(kf, MMEKF):
+            K, P = sol
+            var = band_error_variance(m.Phi, m.H, K, self.R, m.h, iso8608.class_psd_n0(cls), m.speed,
+                                      self.cfg.profile_cutoff, m.vehicle, self.acc_sampling, IZR)
+            ratio = var / float(P[IZR, IZR]) if P[IZR, IZR] > 0 else math.nan
+            if not 0.0 < ratio <= 1e3:  # garbage from an ill-conditioned vehicle: keep P
+                ratio = 1.0
+        self._band_cache = (m, cls, ratio)
+        return ratio
+
+    def _profile(self, out: dict, road: float, speed: float, h: float, var: float, status: int) -> None:
+        """road_profile_est and road_profile_std: the road estimate ``road`` (m) high-passed in
+        distance (plant.profile_band), fed only with its increments while the car moves, so that
+        the profile holds while it stands (the road under the tyre does not change then; the
+        estimate's drift does not count) and a restart (re-initialisation) adds no jump. ``var``
+        (m^2): the variance of the band error; held while standing."""
+        moving = self.motion == MOVING
+        if status == STATUS_REINIT or not math.isfinite(road):
+            self._profile_raw = None
+        else:
+            if moving and self._profile_raw is not None:
+                self._profile_u += road - self._profile_raw
+            self._profile_raw = road
+        out["road_profile_est"] = self._band.step(abs(speed) * h if moving else 0.0, self._profile_u)
+        if moving or "road_profile_std" not in out:
+            out["road_profile_std"] = math.sqrt(var) if var >= 0.0 else math.inf
 
     def _mass_agrees(self, me: MassEstimator, h: float) -> tuple[float, float, bool]:
         """(since-change mass kg, its standard error kg, whether it agrees with the model mass):
@@ -1032,6 +1091,7 @@ class SuspensionEstimator:
             h = same_step(h, f.h)
         speed = abs(float(speed)) if math.isfinite(speed) else self._speed_last
         self._speed_last = speed
+        self.motion = MOVING if speed >= cfg.tuning.standstill_speed else STANDING
         vals = (float(acc_sprung), float(acc_unsprung), float(deflection))
         self.time += h
         self._h = h
@@ -1053,7 +1113,7 @@ class SuspensionEstimator:
         elif me is not None:
             ok = live[0] and live[2]
             me.update(vals[0] if live[0] else 0.0, vals[2] if live[2] else x[IZS] - x[IZU], h,
-                      use=ok and status != STATUS_REINIT and speed >= cfg.tuning.mass_min_speed)
+                      use=ok and status != STATUS_REINIT and self.motion == MOVING)
             if cfg.mass_feedback and me.samples * h >= cfg.tuning.mass_warmup:
                 m, _, agree = self._mass_agrees(me, h)
                 if not agree and self.time - self._last_rebuild >= cfg.tuning.mass_rebuild_interval:
@@ -1080,7 +1140,8 @@ class SuspensionEstimator:
         out["road_class_est"] = int(self.classifier.road_class if f.road_class is None else f.road_class)
         out["nis"] = float(f.nis)
         out["status"] = status
-        out["iri_est"] = self.iri.update(self.distance, x[IZR])
+        self._profile(out, x[IZR], speed, h, var if var > 0.0 else math.inf, status)  # the raw variance: an upper bound
+        out["iri_est"] = self.iri.update(self.distance, out["road_profile_est"])
         return out
 
 

@@ -89,7 +89,7 @@ class Tuning:
     # about 2 s, and the regression's excitation test (a 1 s low-pass of F[a_s]^2) stays open
     # ~9 s longer, in which the RLS fitted noise to noise (410 kg -> 41 kg, the bound, in 3 s
     # standing). Below it the mass and its std hold.
-    mass_min_speed: float = 0.5
+    standstill_speed: float = 0.5
     # relative difference of the RLS mass from the model mass above which the RLS keeps using
     # live body-acceleration and deflection samples that the road filter rejects
     mass_trust_sensors: float = 0.05

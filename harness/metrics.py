@@ -22,6 +22,7 @@ import numpy as np
 from scipy.signal import butter, lsim, sosfiltfilt
 
 from ..estimators.model import RoadModel
+from ..plant.profile_band import PROFILE_CUTOFF, highpass_profile
 
 HP_CUTOFF = 0.5  # Hz
 HP_ORDER = 4
@@ -97,6 +98,28 @@ def road_scores(t: np.ndarray, est: np.ndarray, truth: np.ndarray, std: np.ndarr
         (s,) = _cut(t, np.asarray(std, float), warmup=warmup)
         out["coverage_2sigma"] = float(np.mean(np.abs(e - r) <= 2 * s))
     return out
+
+
+def reference_profile(distance: np.ndarray, height: np.ndarray, cutoff: float = PROFILE_CUTOFF) -> np.ndarray:
+    """The profile in a distance band, as inertial profilers report it (m): the true elevation
+    ``height`` (m) at ``distance`` (m, non-decreasing) high-passed in distance at the wavelength
+    ``cutoff`` (m; plant.profile_band: second order, from rest at the first point, so the start
+    level and a constant grade give 0). It does not depend on the speed, and a stop changes
+    nothing."""
+    return highpass_profile(distance, height, cutoff)
+
+
+def band_scores(t: np.ndarray, distance: np.ndarray, est: np.ndarray, truth: np.ndarray,
+                cutoff: float = PROFILE_CUTOFF, warmup: float = WARMUP) -> dict[str, float]:
+    """The error of a road estimate ``est`` against the true elevation ``truth`` (m) in the distance
+    band of ``reference_profile``: both pass the same high-pass in distance, so a level, a grade
+    or a drift longer than ``cutoff`` m leaves no error. Scored after ``warmup`` s of the times
+    ``t`` (s). Keys: band_rmse_mm, band_err_pct (100 rms error / rms of the band profile)."""
+    e = reference_profile(distance, est, cutoff) - reference_profile(distance, truth, cutoff)
+    r = reference_profile(distance, truth, cutoff)
+    e, r = _cut(t, e, r, warmup=warmup)
+    return {"band_rmse_mm": float(1e3 * np.sqrt(np.mean(e ** 2))),
+            "band_err_pct": float(100 * np.sqrt(np.mean(e ** 2) / np.mean(r ** 2)))}
 
 
 def mass_error_pct(est: np.ndarray, truth: np.ndarray) -> np.ndarray:

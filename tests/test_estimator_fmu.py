@@ -178,7 +178,7 @@ def test_a_changed_step_size_is_followed(dist):
 def test_stop_and_go_holds_the_mass(dist, seed):
     """40 km/h, braking to a stand for 5 s, off again (ISO C): through the FMU the mass stays
     within 2 % of the truth at every instant after the first second, and holds while the car
-    stands (before Tuning.mass_min_speed the RLS fitted noise to noise: 410 kg -> 41 kg)."""
+    stands (before Tuning.standstill_speed the RLS fitted noise to noise: 410 kg -> 41 kg)."""
     from suspension_estimation.plant import iso8608
     from suspension_estimation.plant.quarter_car import QuarterCar, SensorNoise
     from suspension_estimation.plant.road import SyntheticRoad

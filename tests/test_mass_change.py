@@ -107,7 +107,7 @@ def test_sensor_noise_alone_identifies_nothing(speed):
     hold their nominal values (least squares of noise on noise falls towards zero: the mass
     reached its 41 kg bound in 15 s before), the road filter is not rebuilt (it was, about 20
     times a second, at each new wrong mass) and the excitation reads about 1 on the flat road;
-    standing (below Tuning.mass_min_speed) the regression is not fed at all."""
+    standing (below Tuning.standstill_speed) the regression is not fed at all."""
     from suspension_estimation.estimators import SuspensionEstimator
 
     car = QuarterCar(DEFAULT_VEHICLE.with_(m_s=500.0), SensorNoise(), noise_seed=11)

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from ..plant import iso8608
 from ..plant.half_car import DEFAULT_HALF_CAR, HALF_CAR_RANGES
 from ..plant.iri import SEGMENT_RANGE
+from ..plant.profile_band import CUTOFF_RANGE, PROFILE_CUTOFF
 from ..plant.profile_formats import MAX_POINTS
 from ..plant.quarter_car import NOISE_STD_RANGES, SensorNoise
 from ..plant.sensors import SENSOR_ERROR_RANGES, SensorErrors
@@ -329,7 +330,7 @@ SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
         "standard error of sprung_mass_est (forgetting-factor RLS): small where the road excites the body, large "
         "on a smooth road (2 mass_std above 1 % of the mass: the road does not excite it enough for +-1 %); "
         "m_s_nominal (the prior) in the first second, 0 when the RLS does not estimate the mass"),
-    _iri_output("iri_est", "road_height_est"),
+    _iri_output("iri_est", "road_profile_est"),
     Var("road_class_est", "output", "Integer", None, None,
         "ISO 8608 class identified online (1..8 = A..H), 0 until enough road has been seen"),
     Var("nis", "output", "Real", "1", None, "normalised innovation squared of the last update (filter health)"),
@@ -337,6 +338,19 @@ SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
         "0 = ok, 1 = last measurement rejected (non-finite or outlier), 2 = filter re-initialised"),
     # the known calibration of the sensors (plant/sensors.py); at the end, so that the value references stay
     *_sensor_params(plant=False),
+    _real_param("profile_cutoff", "m", PROFILE_CUTOFF,
+                "long-wavelength cut-off of road_profile_est (default 300 ft, the usual cut-off of inertial "
+                "profilers: every wavelength the IRI responds to passes)", CUTOFF_RANGE),
+    Var("road_profile_est", "output", "Real", "m", None,
+        "estimated road profile as inertial profilers report it: the road elevation high-passed in distance at "
+        "profile_cutoff (second-order Butterworth; harness.metrics.reference_profile gives it from a true profile), "
+        "from 0 at the start; it holds while the car stands (speed below 0.5 m/s). Constant sensor offsets and "
+        "biases, grades and the start level fall mostly outside this band"),
+    Var("road_profile_std", "output", "Real", "m", None,
+        "1-sigma uncertainty of road_profile_est against reference_profile: the filter covariance scaled to its "
+        "steady-state error in that band on a road of the online class (road_estimator 0 and 2); for the other "
+        "estimators their raw road variance, an upper bound. Sensor errors beyond the noise are not in it "
+        "(docs/real-sensors.md)"),
 )
 
 # HalfCar: one side of a mid-size sedan (docs/half-car.md gives the reasoning behind every default)
