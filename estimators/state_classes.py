@@ -15,6 +15,7 @@ from .imm_filter import IMMRoad, MovingIMMRoad
 from .kalman import MMEKF, LinearKF
 from .mass import ForgettingRLS, MassEstimator, StateVariableFilter
 from .model import DiscreteModel, ModelNoise, RoadModel
+from .profile_check import LongWaveCheck
 from .response_class import ResponseClassifier
 from .road_class import RoadClassifier
 from .start_offset import StartOffset
@@ -28,4 +29,4 @@ STATE_CLASSES: tuple[type, ...] = (
     IMM, MassIMM, MovingMassIMM, IMMRoad, MovingIMMRoad, VBAKF, VBRoadFilter, NonlinearModel, EKF, UKF,
     FilterpyUKF, _FilterpyEKF, DualObserver, NonlinearRoadFilter, UKFRoadFilter, DualObserverFilter,
     Vehicle, IRIMeter, AirSpring, PiecewiseDamper, BumpStops, SensorErrors, DelayLine,
-    DistanceHighpass)
+    DistanceHighpass, LongWaveCheck)

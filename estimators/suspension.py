@@ -75,6 +75,7 @@ from .mass import MassEstimator
 from .model import (IVR, IVS, IVU, IZR, IZS, IZU, N_STATES, N_STATES_AVG, DiscreteModel,
                     held_input_matrix, iso_road_height_std, measurement_covariance,
                     reference_step_response)
+from .profile_check import EXCESS, LongWaveCheck
 from .road_class import RoadClassifier
 from .start_offset import StartOffset
 from .steady_state import band_error_variance, raw_error_variance, reference_lag
@@ -85,7 +86,7 @@ OUTPUTS = ("road_height_est", "road_velocity_est", "road_height_std", "z_s_est",
            "z_u_est", "v_u_est", "susp_deflection_est", "tire_deflection_est", "sprung_mass_est", "mass_std",
            "road_class_est", "nis", "status", "iri_est", "road_profile_est", "road_profile_std")
 
-STATUS_OK, STATUS_REJECTED, STATUS_REINIT = 0, 1, 2
+STATUS_OK, STATUS_REJECTED, STATUS_REINIT, STATUS_LONG_WAVE = 0, 1, 2, 3
 # the car's motion, from the speed each step (Tuning.standstill_speed): standing, the mass
 # regression is not fed and the road profile holds
 MOVING, STANDING = "moving", "standing"
@@ -357,6 +358,7 @@ class SuspensionEstimator:
         self._profile_u = 0.0  # m, the sum of the road estimate's increments while moving
         self._profile_raw: float | None = None  # m, the road estimate of the last step
         self._band_cache: tuple | None = None  # (model, class, ratio): see _band_ratio
+        self.long_wave = LongWaveCheck(cfg.profile_cutoff)
         self.model: DiscreteModel | None = None
         self._model_key: tuple | None = None
         self._class_height_std: dict[int, float] = {}  # m, ISO road-height std per class
@@ -1070,7 +1072,13 @@ class SuspensionEstimator:
             if moving and self._profile_raw is not None:
                 self._profile_u += road - self._profile_raw
             self._profile_raw = road
-        out["road_profile_est"] = self._band.step(abs(speed) * h if moving else 0.0, self._profile_u)
+        ds = abs(speed) * h if moving else 0.0
+        y = out["road_profile_est"] = self._band.step(ds, self._profile_u)
+        check = self.long_wave
+        if check.step(ds, self._profile_u, y, self.assumed_class) == EXCESS:
+            var += check.excess
+            if out["status"] == STATUS_OK:
+                out["status"] = STATUS_LONG_WAVE
         if moving or "road_profile_std" not in out:
             out["road_profile_std"] = math.sqrt(var) if var >= 0.0 else math.inf
 

@@ -335,7 +335,10 @@ SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
         "ISO 8608 class identified online (1..8 = A..H), 0 until enough road has been seen"),
     Var("nis", "output", "Real", "1", None, "normalised innovation squared of the last update (filter health)"),
     Var("status", "output", "Integer", None, None,
-        "0 = ok, 1 = last measurement rejected (non-finite or outlier), 2 = filter re-initialised"),
+        "0 = ok, 1 = last measurement rejected (non-finite or outlier), 2 = filter re-initialised, 3 = the "
+        "profile's long wavelengths (profile_cutoff/3 to profile_cutoff) exceed 4x what the road's ISO class "
+        "explains over the last 2 profile_cutoff of travel: a vertical curve, a start on a grade, or a drift from "
+        "a sensor bias; road_profile_std includes the excess (estimators/profile_check.py)"),
     # the known calibration of the sensors (plant/sensors.py); at the end, so that the value references stay
     *_sensor_params(plant=False),
     _real_param("profile_cutoff", "m", PROFILE_CUTOFF,
