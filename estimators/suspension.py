@@ -77,6 +77,7 @@ from .model import (IVR, IVS, IVU, IZR, IZS, IZU, N_STATES, N_STATES_AVG, Discre
                     reference_step_response)
 from .profile_check import EXCESS, LongWaveCheck
 from .road_class import RoadClassifier
+from .standstill_bias import LEARNED, StandstillBias
 from .start_offset import StartOffset
 from .steady_state import band_error_variance, raw_error_variance, reference_lag
 from .tuning import TUNING, TUNING_FIELDS, Tuning
@@ -294,6 +295,12 @@ class SuspensionEstimator:
         self._aligners = ([DelayLine(lag - d) for d in self.sensors.delays]
                           if not self.sensors.none else None)
         self._sample_time = 0.0  # s, the clock of the aligners
+        # accelerometer biases learned while the car stands (standstill_bias.py), removed from
+        # the samples once the car moves again; at its first move the road filter restarts
+        self.standstill = StandstillBias()
+        self.bias_removed = (0.0, 0.0)  # m/s^2, body and wheel, in use
+        self._moved = False  # the car has moved since the start
+        self._d_last: float | None = None  # m, the last deflection given to the mass regression
         # codes beyond the KF family: an estimator of the registry (interface.py), composed here
         factory = composed_factory(int(cfg.road_estimator), int(cfg.mass_estimator))
         self.composed: RoadFilter | None = None if factory is None else factory(cfg)
@@ -816,6 +823,7 @@ class SuspensionEstimator:
             t = self._sample_time
             acc_sprung, acc_unsprung, deflection = self.sensors.remove(
                 *(line.push(t, float(v)) for line, v in zip(self._aligners, (acc_sprung, acc_unsprung, deflection))))
+        acc_sprung, acc_unsprung = self._standstill_bias(acc_sprung, acc_unsprung, speed, h)
         if self.composed is not None:
             return self._step_composed(acc_sprung, acc_unsprung, deflection, speed, h)
         if self.model is not None:
@@ -904,7 +912,7 @@ class SuspensionEstimator:
             src = self.anchor if self.anchor_trusted else kf
             a_use = acc_sprung if ok_a else float(self.model.H[0] @ kf.x)
             d_use = deflection if ok_d else float(src.x[IZS] - src.x[IZU])
-            me.update(a_use, d_use, h, use=ok_a and ok_d and status != STATUS_REINIT
+            me.update(a_use, self._mass_deflection(d_use), h, use=ok_a and ok_d and status != STATUS_REINIT
                       and self.motion == MOVING)
             if me.resets != self._resets_seen:  # a payload change detected
                 self._resets_seen = me.resets
@@ -1035,6 +1043,39 @@ class SuspensionEstimator:
         out["iri_est"] = self.iri.update(self.distance, out["road_profile_est"])
         return out
 
+    def _mass_deflection(self, d: float) -> float:
+        """The deflection (m) the mass regression pairs with this sample's body acceleration: the
+        sample itself, or with accelerations averaged over the step (acc_sampling 1) the mean of
+        this and the last sample, which refers to the same mid-step instant as the average. Paired
+        with the end-of-step deflection the average lags it by half a step, and the regression's
+        damping term, in quadrature with the acceleration, takes that lag up: at 5 and 10 ms the
+        identified damping came out 21 / 24 % low and the mass 11 / 21 % (ISO C, 40 km/h)."""
+        if self.acc_sampling != 1:
+            return d
+        last, self._d_last = self._d_last, d
+        return d if last is None or not math.isfinite(last) else 0.5 * (d + last)
+
+    def _standstill_bias(self, a_s: float, a_u: float, speed: float, h: float) -> tuple[float, float]:
+        """The accelerations less the biases learned while the car stood (standstill_bias.py).
+        The biases in use change when the car moves off after a stand; at its first move (the
+        road filter has seen only the standing car) the road filter restarts from rest, so that
+        the bias it integrated while standing leaves nothing behind."""
+        learner = self.standstill
+        standing = not abs(speed) >= self.cfg.tuning.standstill_speed if math.isfinite(speed) else not self._moved
+        was_standing = learner.standing_for > 0.0
+        learner.step(standing, a_s, a_u, h)
+        if not standing and was_standing and learner.state == LEARNED:
+            self.bias_removed = learner.bias
+            if not self._moved:
+                if self.composed is not None:
+                    self.composed.reset()
+                else:
+                    self.reset_state(from_rest=True)
+        if not standing:
+            self._moved = True
+        b_s, b_u = self.bias_removed
+        return a_s - b_s, a_u - b_u
+
     def _band_ratio(self) -> float:
         """Steady-state variance of the road error in the distance band of road_profile_est
         (steady_state.band_error_variance: the ISO road of the assumed class and the sensor
@@ -1120,7 +1161,7 @@ class SuspensionEstimator:
             mass = float(f.mass)
         elif me is not None:
             ok = live[0] and live[2]
-            me.update(vals[0] if live[0] else 0.0, vals[2] if live[2] else x[IZS] - x[IZU], h,
+            me.update(vals[0] if live[0] else 0.0, self._mass_deflection(vals[2] if live[2] else x[IZS] - x[IZU]), h,
                       use=ok and status != STATUS_REINIT and self.motion == MOVING)
             if cfg.mass_feedback and me.samples * h >= cfg.tuning.mass_warmup:
                 m, _, agree = self._mass_agrees(me, h)
