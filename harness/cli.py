@@ -5,14 +5,17 @@ and the estimator's parameters (``runner.parameter_lines``), then a summary; wri
 and PNG plots (default ``results/<scenario>/``).
 
 ``python -m suspension_estimation.harness paper [--study NAME ...] [--seeds N] [--duration S] [--warmup S] [--step S]
-[--classes B,C,D] [--workers N] [--out DIR] [--study10ms] [--class-study N] [--dask]
+[--classes B,C,D] [--speeds 40,80] [--workers N] [--out DIR] [--study10ms] [--class-study N] [--dask]
 [--scheduler ADDRESS] [--dist DIR] [--resume]``: the papers' studies through the FMUs (one module each in
 harness/studies/, named in its registry; without ``--study``: table2 and mass; with ``--dask`` or
 ``--scheduler`` on Dask through the sweep runner, harness/sweep.py, each worker reusing its FMU
 instances); prints the tables and targets as markdown, writes ``<out>/paper_tables.md``,
 ``<out>/paper_runs.json`` and PNG plots (default ``results/paper/``); each run's result is appended
 to ``<out>/runs.jsonl`` as it lands, and ``--resume`` runs only those not completed there. Exits 1
-if any run failed (after reporting it and finishing the others).
+if any run failed (after reporting it and finishing the others). ``--seeds``, ``--duration``,
+``--classes`` and ``--speeds`` (km/h, the sensors study's) not given take the study's own defaults
+(``Study.defaults``) when ``--study`` names one study alone: ``--study sensors`` runs ISO C at
+40 km/h, 2 seeds of 30 s.
 
 ``python -m suspension_estimation.harness sweep <file> [--workers N] [--scheduler ADDRESS] [--out DIR] [--dist DIR]
 [--skip-failed] [--limit N]``: a grid or Monte Carlo study on Dask (harness/sweep.py); one row of
@@ -99,11 +102,22 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _paper(args: argparse.Namespace) -> int:
-    from .studies.runner import parse_classes
+    from .studies import load
+    from .studies.runner import parse_classes, parse_speeds
     from .studies.suite import CHECKPOINT, PaperStudy
 
-    study = PaperStudy(seeds=args.seeds, duration=args.duration, warmup=args.warmup, step=args.step,
-                       classes=parse_classes(args.classes), workers=args.workers, study10ms=args.study10ms,
+    # an option not given: the study's own default (``Study.defaults``) when --study names one study
+    # alone and no flag adds another, else the common one
+    named = set(args.study or ())
+    own = dict(load(next(iter(named))).defaults) if len(named) == 1 and not (args.study10ms or args.class_study) \
+        else {}
+    given = {"seeds": args.seeds, "duration": args.duration,
+             "classes": None if args.classes is None else parse_classes(args.classes),
+             "speeds": None if args.speeds is None else parse_speeds(args.speeds)}
+    common = {"seeds": 10, "duration": 60.0, "classes": parse_classes("B,C,D"), "speeds": ()}
+    opt = {k: v if v is not None else own.get(k, common[k]) for k, v in given.items()}
+    study = PaperStudy(seeds=opt["seeds"], duration=opt["duration"], warmup=args.warmup, step=args.step,
+                       classes=opt["classes"], speeds=opt["speeds"], workers=args.workers, study10ms=args.study10ms,
                        class_seeds=args.class_study, dask=args.dask, scheduler=args.scheduler,
                        dist=Path(args.dist), out=Path(args.out), studies=tuple(args.study or ()),
                        resume=args.resume)
@@ -188,15 +202,18 @@ def main(argv: list[str] | None = None) -> int:
     paper.add_argument("--study", action="append", metavar="NAME",
                        help=f"run this study (repeatable; one of those below; default: {' and '.join(DEFAULT_STUDIES)}, "
                             "plus those --study10ms and --class-study add)")
-    paper.add_argument("--seeds", type=int, default=10, help="seeds per cell (default 10)")
-    paper.add_argument("--duration", type=float, default=60.0,
-                       help="s per run of table2, 10ms, class, robust and paper003 (default 60; the others have "
-                            "their own)")
+    paper.add_argument("--seeds", type=int, help="seeds per cell (default 10; --study sensors alone: 2)")
+    paper.add_argument("--duration", type=float,
+                       help="s per run of table2, 10ms, class, robust, paper003 and sensors (default 60; --study "
+                            "sensors alone: 30; the others have their own)")
     paper.add_argument("--warmup", type=float, default=10.0,
                        help="s not scored at the start of those runs (default 10)")
     paper.add_argument("--step", type=float, default=0.001,
-                       help="communication step in s (default 0.001; 10ms and vb have their own)")
-    paper.add_argument("--classes", default="B,C,D", help="ISO classes of table2, 10ms and robust (default B,C,D)")
+                       help="communication step in s (default 0.001; 10ms, vb and the sensors study's logging "
+                            "cases have their own)")
+    paper.add_argument("--classes", help="ISO classes of table2, 10ms, robust and sensors (default B,C,D; --study "
+                                         "sensors alone: C)")
+    paper.add_argument("--speeds", help="km/h of the sensors study (default 40,80; --study sensors alone: 40)")
     paper.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
     paper.add_argument("--out", default=str(RESULTS / "paper"), help="output folder (default results/paper/)")
     paper.add_argument("--study10ms", action="store_true", help="also the 10ms study")

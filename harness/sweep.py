@@ -196,6 +196,8 @@ def run_key(spec: RunSpec, estimator: Estimator | None = None) -> str:
     """A stable hash (16 hex digits) of everything the numbers of a run depend on (not the FMU
     folder, nor whether traces are kept); with ``estimator``, of that estimator's row."""
     d = {k: v for k, v in asdict(spec).items() if k not in ("dist", "traces")}
+    if not d.get("sensor_errors"):  # none: the key of a run from before RunSpec had the field
+        d.pop("sensor_errors", None)
     if estimator is not None:
         d["estimator"] = asdict(estimator)
     text = json.dumps(d, sort_keys=True, separators=(",", ":"))

@@ -29,6 +29,9 @@ STUDIES = {  # --study NAME: ("module:object" under harness.studies, what it run
                  "paper 003: EKF, UKF, dual state + mass observer, air-spring plant, ISO A-C, 10 m/s"),
     "imm": ("imm:IMM",
             "paper 002: IMM mass, its Fig. 6 scenario (4 x 50 s), off its mass grid, damping 20 % off"),
+    "sensors": ("sensors:SENSORS",
+                "sensor offset, biases, gains, 2 ms delays, 200/100 Hz logging; linear and air-spring plant "
+                "(alone: ISO C, 40 km/h, 2 seeds, 30 s)"),
 }
 
 

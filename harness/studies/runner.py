@@ -53,6 +53,11 @@ VEHICLE_KEYS = ("m_u", "k_s", "k_t", "c_s")
 NOMINAL_MASS = 410.0  # kg, what the estimators of a table-2 run assume by default
 NOISE = {"acc_sprung_noise_std": 0.02, "acc_unsprung_noise_std": 0.2, "defl_noise_std": 1e-4}  # m/s2, m/s2, m
 NOISE_SEED_OFFSET = 1000
+# The sensor errors of a plant (plant/sensors.py), the QuarterCar and SuspensionEstimator parameters
+# of these names (spelled out, as VEHICLE_KEYS): m, m/s2, m/s2, 1, 1, s, s, s. ``RunSpec.sensor_errors``
+# holds their values in this order.
+SENSOR_ERROR_KEYS = ("deflection_offset", "acc_sprung_bias", "acc_unsprung_bias", "acc_sprung_scale",
+                     "acc_unsprung_scale", "acc_sprung_delay", "acc_unsprung_delay", "deflection_delay")
 TRACE_WINDOW = 3.0  # s of road kept for plots, from the end of the warm-up
 
 
@@ -101,6 +106,10 @@ class RunSpec:
     # the plant's suspension laws (QuarterCar spring_model, damper_model): (0, 0) the linear k_s and
     # c_s of ``vehicle``; 1 = the air spring / the asymmetric damper with the contract's defaults
     plant_models: tuple[int, int] = (0, 0)
+    # the plant's sensor errors, values of SENSOR_ERROR_KEYS in that order; () = none (the contract's
+    # defaults: no offset, bias or delay, unit gains). Only the plant gets them: what an estimator is
+    # told is its own parameters' business.
+    sensor_errors: tuple[float, ...] = ()
 
     @property
     def name(self) -> str:
@@ -114,7 +123,10 @@ class RunSpec:
         return (f"{self.study} ISO {c} {self.mass:g} kg seed {self.seed}"
                 + (f" acc_sampling {self.acc_sampling}" if self.study == "table2_10ms" else "")
                 + (f" plant models {self.plant_models[0]},{self.plant_models[1]}"
-                   if tuple(self.plant_models) != (0, 0) else ""))
+                   if tuple(self.plant_models) != (0, 0) else "")
+                + (f" {3.6 * self.speed:.0f} km/h {1e3 * self.step:g} ms acc_sampling {self.acc_sampling}"
+                   if self.study == "sensors" else "")
+                + (f" sensor errors {tuple(self.sensor_errors)}" if self.sensor_errors else ""))
 
 
 def build_system(dist: Path, estimators: Sequence[str]) -> System:
@@ -145,6 +157,11 @@ def plant_params(spec: RunSpec) -> dict:
          "QuarterCar.noise_seed": NOISE_SEED_OFFSET + spec.seed, "QuarterCar.acc_sampling": spec.acc_sampling}
     p.update({f"QuarterCar.{k}": v for k, v in {**vehicle_params(spec), **noise_params(spec)}.items()})
     p["QuarterCar.spring_model"], p["QuarterCar.damper_model"] = map(int, spec.plant_models)
+    if spec.sensor_errors:
+        if len(spec.sensor_errors) != len(SENSOR_ERROR_KEYS):
+            raise ValueError(f"sensor_errors {tuple(spec.sensor_errors)}: {len(SENSOR_ERROR_KEYS)} values, "
+                             f"those of {', '.join(SENSOR_ERROR_KEYS)}")
+        p.update({f"QuarterCar.{k}": float(v) for k, v in zip(SENSOR_ERROR_KEYS, spec.sensor_errors)})
     return p
 
 
@@ -468,6 +485,20 @@ def parse_classes(text: str) -> tuple[int, ...]:
     return tuple(dict.fromkeys(out))
 
 
+def parse_speeds(text: str) -> tuple[float, ...]:
+    """"40,80" (km/h) -> (40.0, 80.0)."""
+    out = []
+    for part in text.split(","):
+        try:
+            v = float(part)
+        except ValueError:
+            v = math.nan
+        if not (math.isfinite(v) and v > 0):
+            raise ValueError(f"--speeds: {part.strip()!r} is not a speed in km/h > 0")
+        out.append(v)
+    return tuple(dict.fromkeys(out))
+
+
 def verdict(ok: bool | None) -> str:
     """PASS / MISS, or n/a when there is nothing to judge (``None``)."""
     return "n/a" if ok is None else "PASS" if ok else "MISS"
@@ -492,6 +523,10 @@ class Study:
     # RunSpec.study -> the top-level function that co-simulates one such spec and returns its
     # results (run by ``run_one``); kinds not here are table-2 runs (``run_estimators``)
     runs: Mapping[str, Callable[[RunSpec], dict]] = {}
+    # options of ``paper`` (PaperStudy fields: seeds, duration, classes, speeds) this study runs with
+    # when it is the only study chosen on the command line and the option is not given: a small
+    # grid where the common defaults would take hours
+    defaults: Mapping[str, object] = {}
 
     def check(self, suite) -> None:
         """Raise ``ValueError`` (one line naming the option) for options the study cannot run with."""

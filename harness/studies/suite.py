@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -82,6 +83,7 @@ class PaperStudy:
     warmup: float = 10.0
     step: float = 1e-3
     classes: tuple[int, ...] = (2, 3, 4)
+    speeds: tuple[float, ...] = ()  # km/h of the studies that take them (sensors); () = each study's own
     workers: int = 2
     study10ms: bool = False  # also the "10ms" study
     class_seeds: int = 0  # seeds of the "class" study; 0 = not run unless named in ``studies`` (then ``seeds``)
@@ -124,6 +126,8 @@ class PaperStudy:
             raise ValueError(f"--warmup = {self.warmup} s must be in [0, --duration = {self.duration} s)")
         if not whole_steps(self.duration, self.step):
             raise ValueError(f"--duration = {self.duration} s is not a whole number of --step = {self.step} s steps")
+        if any(not (math.isfinite(u) and u > 0) for u in self.speeds):
+            raise ValueError(f"speeds {self.speeds} must be km/h > 0")
         if not self.classes or any(not 1 <= c <= 8 for c in self.classes):
             raise ValueError(f"classes {self.classes} must be ISO classes A..H")
         for s in self.chosen():
@@ -233,7 +237,8 @@ class PaperStudy:
 
     def to_json(self) -> dict:
         config = {"seeds": self.seeds, "duration_s": self.duration, "warmup_s": self.warmup, "step_s": self.step,
-                  "classes": [CLASS_LETTERS[c - 1] for c in self.classes], "studies": list(self.names),
+                  "classes": [CLASS_LETTERS[c - 1] for c in self.classes], "speeds_kmh": list(self.speeds),
+                  "studies": list(self.names),
                   "study10ms": "10ms" in self.names, "class_seeds": self.class_seeds, "workers": self.workers,
                   "dist": str(self.dist)}
         out: dict = {"config": config}
