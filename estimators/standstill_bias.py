@@ -9,13 +9,19 @@ and keeps it while it drives that slope.
 ``StandstillBias`` averages each accelerometer over all the time the car has stood, leaving out
 the first ``settle`` s of each stand (the body still pitches and bounces after braking); with at
 least ``min_time`` s of such data the state is ``LEARNED`` and ``bias`` the means (m/s^2), else
-``UNKNOWN`` and zero.
+``UNKNOWN`` and zero. ``removable`` is the part worth removing: each mean, or 0 below its floor
+(``FLOORS``).
 """
 from __future__ import annotations
 
 import math
 
 UNKNOWN, LEARNED = "unknown", "learned"
+# m/s^2, body and wheel: a standing mean below these is not removed. It is then noise and the
+# settling of the body after braking as much as a bias, and a bias that small costs the profile
+# nothing (docs/real-sensors.md: 0.01 m/s^2 on the body, 0.5 on the wheel, within 3 % on the
+# linear plant), while road_height_est integrates any step of its input (1e-3 m/s^2 -> 0.25 m)
+FLOORS = (0.005, 0.05)
 
 
 class StandstillBias:
@@ -42,3 +48,8 @@ class StandstillBias:
                 self.state = LEARNED
                 self.bias = (self._sums[0] / self.time, self._sums[1] / self.time)
         return self.state
+
+    @property
+    def removable(self) -> tuple[float, float]:
+        """The biases to remove (m/s^2): each learned mean, or 0 below its floor."""
+        return tuple(b if abs(b) >= f else 0.0 for b, f in zip(self.bias, FLOORS))

@@ -1065,7 +1065,7 @@ class SuspensionEstimator:
         was_standing = learner.standing_for > 0.0
         learner.step(standing, a_s, a_u, h)
         if not standing and was_standing and learner.state == LEARNED:
-            self.bias_removed = learner.bias
+            self.bias_removed = learner.removable
             if not self._moved:
                 if self.composed is not None:
                     self.composed.reset()

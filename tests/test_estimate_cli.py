@@ -98,8 +98,8 @@ def test_estimates_road_and_iri_by_distance(runs, logs, h):
     log = logs[h]
     assert sorted(p.name for p in out.iterdir()) == ["estimates.csv", "iri.csv", "report.png"]
     est, iri = read_csv(out / "estimates.csv"), read_csv(out / "iri.csv")
-    assert est.dtype.names == ("time", "distance", "road_height_est", "road_height_std", "sprung_mass_est",
-                               "mass_std", "road_class_est", "status")
+    assert est.dtype.names == ("time", "distance", "road_height_est", "road_height_std", "road_profile_est",
+                               "road_profile_std", "sprung_mass_est", "mass_std", "road_class_est", "status")
     assert iri.dtype.names == ("start_m", "end_m", "iri_m_per_km")
     assert np.allclose(est["time"], log["time"], atol=1e-9) and np.allclose(est["distance"], log["distance"])
     assert (out / "report.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -201,3 +201,7 @@ def test_standstill_bias_learner():
     for _ in range(900):
         b.step(True, 7.0, 7.0, 1e-3)
     assert b.bias == pytest.approx((0.2, -0.3))
+    small = StandstillBias(settle=0.0, min_time=1.0)
+    for _ in range(1500):
+        small.step(True, 0.004, 0.3, 1e-3)
+    assert small.bias == pytest.approx((0.004, 0.3)) and small.removable == (0.0, pytest.approx(0.3))
