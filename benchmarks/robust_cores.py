@@ -40,6 +40,7 @@ from suspension_estimation.plant import iso8608  # noqa: E402
 from suspension_estimation.plant.nonlinear_car import NonlinearQuarterCar  # noqa: E402
 from suspension_estimation.plant.quarter_car import QuarterCar, SensorNoise  # noqa: E402
 from suspension_estimation.plant.road import SyntheticRoad  # noqa: E402
+from suspension_estimation.plant.sensors import SensorErrors  # noqa: E402
 from suspension_estimation.plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_DAMPER  # noqa: E402
 from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE  # noqa: E402
 
@@ -57,16 +58,17 @@ OBSERVERS = ("EKF (3)", "UKF (5)", "dual observer (3, 3)")
 MAPS = {"spring_model": 1, "damper_model": 1}  # the contract's default air spring and damper
 
 
-def drive(case: str, cls: int, speed: float, duration: float, seed: int):
-    """(t, measurements, true road, the vehicle the estimators are told)."""
+def drive(case: str, cls: int, speed: float, duration: float, seed: int, errors: SensorErrors = SensorErrors()):
+    """(t, measurements, true road, the vehicle the estimators are told); ``errors``: the plant's
+    sensor errors beside its noise (plant/sensors.py)."""
     road = SyntheticRoad(iso8608.class_psd_n0(cls), seed=seed)
     if case == "nonlinear":
         car = NonlinearQuarterCar(DEFAULT_VEHICLE, DEFAULT_AIR_SPRING, DEFAULT_DAMPER, noise=SensorNoise(),
-                                  noise_seed=1000 + seed)
+                                  noise_seed=1000 + seed, errors=errors)
         told = car.linearisation()
     else:
         car = QuarterCar(DEFAULT_VEHICLE.with_(**dict(zip(("m_u", "k_s", "k_t", "c_s"), plant_vehicle(case)))),
-                         SensorNoise(), noise_seed=1000 + seed)
+                         SensorNoise(), noise_seed=1000 + seed, errors=errors)
         told = DEFAULT_VEHICLE.with_(**NOMINAL)
     car.settle(road.height(0.0))  # at rest on the road at t = 0, as QuarterCar.fmu starts
     n = int(round(duration / H))

@@ -25,16 +25,13 @@ import numpy as np
 from scipy.signal import butter, lfilter
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import robust_cores  # noqa: E402
 
 from suspension_estimation.estimators import SuspensionEstimator  # noqa: E402
 from suspension_estimation.harness.metrics import reference_profile, road_scores  # noqa: E402
-from suspension_estimation.plant import iso8608  # noqa: E402
-from suspension_estimation.plant.nonlinear_car import NonlinearQuarterCar  # noqa: E402
-from suspension_estimation.plant.quarter_car import QuarterCar, SensorNoise  # noqa: E402
-from suspension_estimation.plant.road import SyntheticRoad  # noqa: E402
 from suspension_estimation.plant.sensors import SensorErrors  # noqa: E402
-from suspension_estimation.plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_DAMPER  # noqa: E402
-from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE  # noqa: E402
 
 H = 1e-3  # s
 WARMUP = 10.0  # s
@@ -56,22 +53,9 @@ ESTIMATORS = {"KF (0)": {"road_estimator": 0}, "default": {}}
 
 
 def drive(plant: str, errors: SensorErrors, cls: int, speed: float, duration: float, seed: int):
-    """(t, measurements, true road, the vehicle the estimator is told)."""
-    road = SyntheticRoad(iso8608.class_psd_n0(cls), seed=seed)
-    if plant == "nonlinear":
-        car = NonlinearQuarterCar(DEFAULT_VEHICLE, DEFAULT_AIR_SPRING, DEFAULT_DAMPER, noise=SensorNoise(),
-                                  noise_seed=1000 + seed, errors=errors)
-        told = car.linearisation()
-    else:
-        car = QuarterCar(DEFAULT_VEHICLE, SensorNoise(), noise_seed=1000 + seed, errors=errors)
-        told = DEFAULT_VEHICLE
-    car.settle(road.height(0.0))
-    n = int(round(duration / H))
-    meas, zr = np.empty((n, 3)), np.empty(n)
-    for k in range(n):
-        car.step(road.height(speed * k * H), H)
-        meas[k], zr[k] = car.measured, car.road
-    return np.arange(1, n + 1) * H, meas, zr, told
+    """(t, measurements, true road, the vehicle the estimator is told): robust_cores.drive's
+    exact or air-spring plant with the sensor errors ``errors``."""
+    return robust_cores.drive("nonlinear" if plant == "nonlinear" else "exact", cls, speed, duration, seed, errors)
 
 
 def debias(x: np.ndarray, t0: float = 20.0, tau: float = 100.0) -> np.ndarray:

@@ -82,17 +82,23 @@ def reference_highpass(f: np.ndarray, f_ref: float, zeta_ref: float) -> np.ndarr
     return s * s / (s * s + 2 * zeta_ref * w * s + w * w) if f_ref > 0 else np.ones_like(s)
 
 
-def road_transfer(Phi, H, K, h: float, f: np.ndarray, vehicle: Vehicle = DEFAULT_VEHICLE,
-                  acc_sampling: int = 0, row: int = 4) -> np.ndarray:
-    """Road -> estimate transfer T(f) (dimensionless, f in Hz) through the plant and the
-    steady-state filter with gain K (state ``row``)."""
-    f = np.asarray(f, float)
-    zinv = np.exp(-2j * np.pi * f * h)
+def _road_and_noise_transfers(Phi, H, K, h: float, f: np.ndarray, vehicle: Vehicle, acc_sampling: int,
+                              row: int) -> tuple[np.ndarray, np.ndarray]:
+    """(T (nf,), F (nf, channels)): the road -> estimate transfer through the plant and the
+    steady-state filter with gain K, and the measurement -> estimate transfers (state ``row``)."""
+    zinv = np.exp(-2j * np.pi * np.asarray(f, float) * h)
     G = plant_transfer(vehicle, h, zinv, acc_sampling)
     e = np.zeros((1, Phi.shape[0]))
     e[0, row] = 1.0
     F = filter_transfer(Phi, H, K, zinv, e)[:, 0, :]
-    return np.einsum("fi,fi->f", F, G[:, :K.shape[1]])
+    return np.einsum("fi,fi->f", F, G[:, :K.shape[1]]), F
+
+
+def road_transfer(Phi, H, K, h: float, f: np.ndarray, vehicle: Vehicle = DEFAULT_VEHICLE,
+                  acc_sampling: int = 0, row: int = 4) -> np.ndarray:
+    """Road -> estimate transfer T(f) (dimensionless, f in Hz) through the plant and the
+    steady-state filter with gain K (state ``row``)."""
+    return _road_and_noise_transfers(Phi, H, K, h, f, vehicle, acc_sampling, row)[0]
 
 
 def reference_lag(Phi, H, K, h: float, f_ref: float, zeta_ref: float, vehicle: Vehicle = DEFAULT_VEHICLE,
@@ -131,12 +137,7 @@ def road_error_variance(Phi, H, K, h: float, gd_n0: float, speed: float, vehicle
     if not f_hi > f_lo:
         return 0.0
     f = np.geomspace(f_lo, f_hi, nf)
-    zinv = np.exp(-2j * np.pi * f * h)
-    G = plant_transfer(vehicle, h, zinv, acc_sampling)
-    e = np.zeros((1, Phi.shape[0]))
-    e[0, row] = 1.0
-    F = filter_transfer(Phi, H, K, zinv, e)[:, 0, :]
-    T = np.einsum("fi,fi->f", F, G[:, :K.shape[1]])
+    T, _ = _road_and_noise_transfers(Phi, H, K, h, f, vehicle, acc_sampling, row)
     if reference is None:
         err = T - 1
     else:
@@ -184,12 +185,7 @@ def band_error_variance(Phi, H, K, R, h: float, gd_n0: float, speed: float, cuto
     This is the error of ``road_profile_est`` when the vehicle is the model's."""
     v = max(abs(float(speed)), 0.1)
     f = np.geomspace(0.05 * v / cutoff, 0.999 / (2 * h), nf)
-    zinv = np.exp(-2j * np.pi * f * h)
-    G = plant_transfer(vehicle, h, zinv, acc_sampling)
-    e = np.zeros((1, Phi.shape[0]))
-    e[0, row] = 1.0
-    F = filter_transfer(Phi, H, K, zinv, e)[:, 0, :]
-    T = np.einsum("fi,fi->f", F, G[:, :K.shape[1]])
+    T, F = _road_and_noise_transfers(Phi, H, K, h, f, vehicle, acc_sampling, row)
     Sn = 2 * h * np.diag(R)
     S = np.abs(T - 1) ** 2 * iso_psd_time(f, gd_n0, v) + (np.abs(F) ** 2 * Sn).sum(1)
     return float(np.trapezoid(np.abs(band_response(f / v, cutoff)) ** 2 * S, f))
