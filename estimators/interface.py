@@ -5,7 +5,8 @@ registry of every ``road_estimator`` and ``mass_estimator`` code.
 checks (non-finite or frozen channels), ``status``, re-initialisation after a non-finite state,
 the online road class, the IRI and the contract's outputs. An estimator owns its model, its state
 and its own step-size bookkeeping. Adding one touches its own module, one line of the registry
-below, its code and meaning in the contract, and the docs.
+below, its code, name and meaning in the contract (the registry takes the codes from there), and
+the docs.
 
 Codes 0-2 of ``road_estimator`` and 0-1 of ``mass_estimator`` are the KF family that
 ``SuspensionEstimator`` runs itself (gating, re-filtering after a payload change and the anchor
@@ -20,6 +21,8 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
+
+from ..suspension_fmi import contract
 
 if TYPE_CHECKING:  # pragma: no cover
     from .suspension import EstimatorConfig
@@ -80,33 +83,38 @@ class RoadFilter:
 
 @dataclass(frozen=True)
 class Code:
-    """One code of ``road_estimator`` or ``mass_estimator``: ``name`` for messages; ``factory``
-    "module:Class" of a ``RoadFilter`` in this package, or None for ``SuspensionEstimator``'s own
-    KF family; ``roads``: for a joint mass estimator, the road codes it goes with (None: any).
-    The contract (suspension_fmi/contract.py) gives each code its meaning; a test checks that both
-    list the same codes."""
+    """One code of ``road_estimator`` or ``mass_estimator``: ``name`` for messages (the
+    contract's short name); ``factory`` "module:Class" of a ``RoadFilter`` in this package, or
+    None for ``SuspensionEstimator``'s own KF family; ``roads``: for a joint mass estimator, the
+    road codes it goes with (None: any)."""
 
     name: str
     factory: str | None = None
     roads: tuple[int, ...] | None = None
 
 
-ROAD_ESTIMATORS: dict[int, Code] = {
-    0: Code("Kalman filter"),
-    1: Code("MME&KF"),
-    2: Code("KF with suspension-force error state"),
-    3: Code("EKF on the nonlinear model", "airspring_observers:NonlinearRoadFilter"),
-    4: Code("VB-AKF", "vb_akf:VBRoadFilter"),
-    5: Code("UKF on the nonlinear model", "airspring_observers:UKFRoadFilter"),
-}
+# the codes, their names and meanings are the contract's (suspension_fmi/contract.py); here only
+# what implements each code beyond the KF family, and which road codes a joint estimator takes
+KF_FAMILY = {"road_estimator": (0, 1, 2), "mass_estimator": (0, 1)}
+_ROAD_FACTORIES = {3: "airspring_observers:NonlinearRoadFilter", 4: "vb_akf:VBRoadFilter",
+                   5: "airspring_observers:UKFRoadFilter"}
+_MASS_FACTORIES = {2: ("imm_filter:IMMRoad", (0,)), 3: ("airspring_observers:DualObserverFilter", (3, 5)),
+                   4: ("imm_filter:MovingIMMRoad", (0,))}
+ROAD_ESTIMATORS: dict[int, Code] = {k: Code(name, _ROAD_FACTORIES.get(k))
+                                    for k, (name, _) in contract.ROAD_ESTIMATORS.items()}
+MASS_ESTIMATORS: dict[int, Code] = {k: Code(name, *_MASS_FACTORIES.get(k, (None, None)))
+                                    for k, (name, _) in contract.MASS_ESTIMATORS.items()}
 
-MASS_ESTIMATORS: dict[int, Code] = {
-    0: Code("off"),
-    1: Code("forgetting-factor RLS"),
-    2: Code("IMM", "imm_filter:IMMRoad", roads=(0,)),
-    3: Code("dual observer", "airspring_observers:DualObserverFilter", roads=(3, 5)),
-    4: Code("moving-bank IMM", "imm_filter:MovingIMMRoad", roads=(0,)),
-}
+
+def unimplemented_codes() -> list[str]:
+    """The contract's codes that nothing implements (neither the KF family nor a factory here),
+    and factories of codes the contract does not list: empty when the two agree."""
+    out = []
+    for what, codes, factories in (("road_estimator", ROAD_ESTIMATORS, _ROAD_FACTORIES),
+                                   ("mass_estimator", MASS_ESTIMATORS, _MASS_FACTORIES)):
+        out += [f"{what} {k}" for k, c in codes.items() if c.factory is None and k not in KF_FAMILY[what]]
+        out += [f"{what} {k} (not in the contract)" for k in factories if k not in codes]
+    return out
 
 
 def code_problems(road: int, mass: int) -> list[str]:

@@ -3,6 +3,7 @@ bad combinations are refused by name, and ``SuspensionEstimator`` composes a reg
 ``RoadFilter`` (sample checks, status, re-initialisation, RLS mass fed back, outputs)."""
 from __future__ import annotations
 
+import importlib
 import math
 
 import numpy as np
@@ -71,6 +72,17 @@ def registered(monkeypatch):
     import suspension_estimation.estimators.suspension as suspension
     monkeypatch.setattr(suspension, "composed_factory", interface.composed_factory)
     return 90
+
+
+def test_every_code_of_the_contract_is_implemented():
+    """The registry takes the codes and names from the contract; each is the KF family's or has
+    a factory, and every factory's class exists."""
+    assert interface.unimplemented_codes() == []
+    for c in (*ROAD_ESTIMATORS.values(), *MASS_ESTIMATORS.values()):
+        if c.factory is not None:
+            module, cls = c.factory.split(":")
+            assert issubclass(getattr(importlib.import_module(f"suspension_estimation.estimators.{module}"), cls),
+                              RoadFilter)
 
 
 def test_the_contract_lists_every_registered_code():
