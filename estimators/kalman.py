@@ -193,6 +193,15 @@ class LinearKF:
         self._freeze()
         return True
 
+    def share_fixed_point(self, other: "LinearKF") -> None:
+        """Take ``other``'s fixed point (same model: F, Q, H, R) instead of solving for it again."""
+        self._ss, self._ss_gain = other._ss, other._ss_gain
+
+    @property
+    def stationary_innovation_variance(self) -> np.ndarray | None:
+        """diag(S) at the model's fixed point once ``stationary()`` has found it, else None."""
+        return None if self._ss_gain is None else np.diag(self._ss_gain[1])
+
     @property
     def stationary_solution(self) -> tuple[np.ndarray, np.ndarray] | None:
         """(K, P_post) at the model's fixed point once ``stationary()`` has found it, else None."""

@@ -559,7 +559,7 @@ class SuspensionEstimator:
         sk = self._start_kf
         if sk is not None:  # the same model and fixed point (kept while its state is its own)
             sk.set_model(self.model.Phi, self.model.Q, self.model.H, self.R)
-            sk._ss, sk._ss_gain = self.kf._ss, self.kf._ss_gain
+            sk.share_fixed_point(self.kf)
             sk.stationary()
         if self.anchor is not None:
             am = self.anchor_model = DiscreteModel.build(
@@ -800,9 +800,10 @@ class SuspensionEstimator:
         Pp = kf.F @ kf.P @ kf.F.T + kf.Q
         y = z - kf.H @ xp
         S = np.einsum("ij,jk,ik->i", kf.H, Pp, kf.H) + np.diag(kf.R)
-        if kf._ss_gain is not None:
+        s_ss = kf.stationary_innovation_variance
+        if s_ss is not None:
             hold = np.array(self._outlier_time) < self.cfg.tuning.gate_hold
-            S = np.where(hold, np.minimum(S, np.diag(kf._ss_gain[1])), S)
+            S = np.where(hold, np.minimum(S, s_ss), S)
         ratio = y * y / S
         ok = ratio <= self.cfg.tuning.outlier_nis
         if ok.all():
