@@ -23,9 +23,10 @@ linearisation at the static point as in the robust study (``robust.linearisation
 Scores per run and estimator after the warm-up: HP road error std % and the raw rms error (mm)
 and the coverage of +-2 road_height_std against the reference ``harness.metrics.road_scores``
 uses; the rms error (mm) of road_profile_est against ``harness.metrics.reference_profile`` and
-the coverage of +-2 road_profile_std; the sprung-mass error % (mean, and the largest |error| at any instant); the largest status
-seen over the run. Estimates of a told delay refer to the time of the largest lag ago (the
-contract); they are scored, as every run, against the truth at the step's time.
+the coverage of +-2 road_profile_std; the sprung-mass error % (mean, and the largest |error| at
+any instant); the largest status seen over the run. Estimates of a told delay refer to the time
+of the largest lag ago (the contract); they are scored, as every run, against the truth at the
+step's time.
 
 Targets (reported, never tuned), judged on every seed of a cell (the cell's worst seed):
 
@@ -298,7 +299,8 @@ class Sensors(Study):
              f"raw: rms error mm of road_height_est against road_scores' reference; cov: share of those within +-2 "
              f"road_height_std; profile: rms error mm of road_profile_est against metrics.reference_profile; pcov: "
              f"share of those within +-2 road_profile_std (the coverage target); mass: sprung-mass error % (mean "
-             f"after the warm-up); max|mass|: the largest |error| % at any instant after the warm-up; status: the largest seen. Targets, on every seed: HP <= "
+             f"after the warm-up); max|mass|: the largest |error| % at any instant after the warm-up; status: the "
+             f"largest seen. Targets, on every seed: HP <= "
              f"{HP_RATIO} x ideal (200 Hz <= {LOGGING['200 Hz logging'][1]} x, 100 Hz <= "
              f"{LOGGING['100 Hz logging'][1]} x the 1 kHz averaged run); pcov in [{COVERAGE[0]}, {COVERAGE[1]}]; mass "
              f"within {MASS_OK:g} % of the reference run's (default with the body accelerometer's gain off: that "
@@ -317,7 +319,8 @@ class Sensors(Study):
             status = v["status_max"][1]
             L.append(f"| {plant} | {CLASS_LETTERS[cls - 1]} | {kmh} | {case} | {label} | "
                      f"{f('err_std_hp_pct', '.2f')} | {f('hp_ratio', '.2f')} | {f('rmse_raw_mm', '.2f')} | "
-                     f"{f('coverage_2sigma', '.3f')} | {f('profile_rmse_mm', '.2f')} | {f('profile_coverage', '.3f')} | "
+                     f"{f('coverage_2sigma', '.3f')} | {f('profile_rmse_mm', '.2f')} | "
+                     f"{f('profile_coverage', '.3f')} | "
                      f"{f('mass_err_mean_pct', '+.2f')} | {f('mass_err_max_abs_pct', '.2f')} | "
                      f"{'–' if math.isnan(status) else f'{status:.0f}'} | {verdict(ok['hp'])} | "
                      f"{verdict(ok['coverage'])} | {verdict(ok['mass'])} |")
