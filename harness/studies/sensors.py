@@ -28,7 +28,10 @@ any instant); the largest status seen over the run. Estimates of a told delay re
 of the largest lag ago (the contract); they are scored, as every run, against the truth at the
 step's time.
 
-Targets (reported, never tuned), judged on every seed of a cell (the cell's worst seed):
+Targets (reported, never tuned): HP and mass judged on every seed of a cell (the cell's worst seed,
+as each compares a run with the same seed's reference run), the coverage over the cell's seeds
+together (one seed's realised band error alone is 0.6-1.35x its std: ten roads,
+docs/real-sensors.md):
 
 - HP road error <= ``HP_RATIO`` x that of the same run (plant, class, speed, seed) on ideal
   sensors; at 200 / 100 Hz <= ``RATE_RATIO`` x that of the ``1 kHz averaged`` run;
@@ -260,7 +263,8 @@ class Sensors(Study):
         hp = [e["err_std_hp_pct"] <= ratio * r["err_std_hp_pct"] for e, r in pairs]
         mass = [abs(_mass_off_pct(e["mass_err_mean_pct"], r["mass_err_mean_pct"])) <= self.mass_bound(case, inst)
                 for e, r in pairs]
-        cov = [COVERAGE[0] <= runs[s][inst]["profile_coverage"] <= COVERAGE[1] for s in runs if inst in runs[s]]
+        seeds = [runs[s][inst]["profile_coverage"] for s in runs if inst in runs[s]]
+        cov = [COVERAGE[0] <= float(np.mean(seeds)) <= COVERAGE[1]] if seeds else []
         return {k: (all(v) if v else None) for k, v in (("hp", hp), ("coverage", cov), ("mass", mass))}
 
     def values(self, cells: dict, plant: str, cls: int, kmh: int, case: str, inst: str) -> dict[str, tuple]:
@@ -300,7 +304,7 @@ class Sensors(Study):
              f"road_height_std; profile: rms error mm of road_profile_est against metrics.reference_profile; pcov: "
              f"share of those within +-2 road_profile_std (the coverage target); mass: sprung-mass error % (mean "
              f"after the warm-up); max|mass|: the largest |error| % at any instant after the warm-up; status: the "
-             f"largest seen. Targets, on every seed: HP <= "
+             f"largest seen. Targets: HP and mass on every seed, the coverage over the seeds together: HP <= "
              f"{HP_RATIO} x ideal (200 Hz <= {LOGGING['200 Hz logging'][1]} x, 100 Hz <= "
              f"{LOGGING['100 Hz logging'][1]} x the 1 kHz averaged run); pcov in [{COVERAGE[0]}, {COVERAGE[1]}]; mass "
              f"within {MASS_OK:g} % of the reference run's (default with the body accelerometer's gain off: that "
