@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..plant.profile_band import PROFILE_CUTOFF
 from .cosim import CoSimulation, SimulationError, System, model_variables, write_csv
 from .scenario import Profile, Scenario, ScenarioError
 from .ssp import ROAD_PLANT, ROAD_PLANT_ESTIMATOR, ensure_system_ssp, read_ssp
@@ -25,7 +26,8 @@ RECORD = {
                    "acc_sprung_true", "acc_unsprung_true", "z_s", "v_s", "z_u", "v_u", "tire_deflection",
                    "tire_force"],
     "SuspensionEstimator": ["road_height_est", "road_velocity_est", "road_height_std", "sprung_mass_est",
-                            "road_class_est", "susp_deflection_est", "nis", "status", "iri_est"],
+                            "road_class_est", "susp_deflection_est", "nis", "status", "iri_est",
+                            "road_profile_est", "road_profile_std"],
 }
 _TABLE = {"ISORoad": "road", "QuarterCar": "plant", "SuspensionEstimator": "estimator"}
 
@@ -219,6 +221,15 @@ def summary(run: Run) -> list[str]:
                          + (f"; within 2 sigma {100 * s['coverage_2sigma']:.0f} %" if "coverage_2sigma" in s else ""))
         except Exception as e:  # noqa: BLE001 - a failing score must not hide the run
             lines.append(f"  road estimate: no score ({type(e).__name__}: {e})")
+        if "SuspensionEstimator.road_profile_est" in r.dtype.names:
+            cutoff = float(run.scenario.parameters(True).get("SuspensionEstimator.profile_cutoff", PROFILE_CUTOFF))
+            keep = t >= t[0] + warmup
+            truth = metrics.reference_profile(r["ISORoad.distance"], r["ISORoad.road_height"], cutoff)[keep]
+            e = r["SuspensionEstimator.road_profile_est"][keep] - truth
+            sd = r["SuspensionEstimator.road_profile_std"][keep]
+            lines.append(f"  road profile (high-passed at {cutoff:g} m of travel, after {warmup:g} s): rmse "
+                         f"{1e3 * rms(e):.2f} mm of {1e3 * rms(truth):.2f} mm; within 2 sigma "
+                         f"{100 * np.mean(np.abs(e) <= 2 * sd):.0f} %")
         if "SuspensionEstimator.iri_est" in r.dtype.names:
             rows = metrics.iri_segments(r["ISORoad.distance"], r["ISORoad.iri"], r["SuspensionEstimator.iri_est"])
             if rows:

@@ -138,6 +138,7 @@ def test_cli_run_writes_csv_plots_and_a_summary(dist, tmp_path):
     if (dist / "SuspensionEstimator.fmu").is_file():
         assert {"s_road_estimate.png", "s_sprung_mass.png"} <= pngs
         assert "road estimate" in p.stdout and "sprung mass" in p.stdout
+        assert "road profile (high-passed at 91.44 m of travel" in p.stdout and "within 2 sigma" in p.stdout
 
 
 def test_cli_run_prints_the_parameters_it_uses(dist, tmp_path):
