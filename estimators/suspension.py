@@ -141,6 +141,13 @@ def _apply(kf: LinearKF, z: np.ndarray, rows) -> None:
             kf.update_rows(z, rows)
 
 
+def _checked_ratio(var: float, P: np.ndarray) -> float:
+    """var (m^2) over the filter's P[z_r, z_r]; 1 (keep P) where that is garbage from an
+    ill-conditioned vehicle (P not positive, a ratio beyond 1e3)."""
+    ratio = var / float(P[IZR, IZR]) if P[IZR, IZR] > 0 else math.nan
+    return ratio if 0.0 < ratio <= 1e3 else 1.0
+
+
 class Blend:
     """Second-order Butterworth low-pass (corner ``hz``) of a scalar, one sample per step of h s
     (coefficients of scipy.signal.butter, direct form II transposed); ``y`` the last output."""
@@ -466,9 +473,7 @@ class SuspensionEstimator:
                 ref = (rm.f_ref, rm.zeta_ref, q)
             var = raw_error_variance(m.Phi, m.H, K, self.R, m.h, iso8608.class_psd_n0(cls), m.speed,
                                      veh, self.acc_sampling, IZR, reference=ref)
-            ratio = var / float(P[IZR, IZR]) if P[IZR, IZR] > 0 else math.nan
-            if not 0.0 < ratio <= 1e3:  # garbage from an ill-conditioned vehicle: keep P
-                ratio = 1.0
+            ratio = _checked_ratio(var, P)
         else:
             ratio, q = hon[3], hon[4]
         self._honest = (m, cls, key, ratio, q)
@@ -824,14 +829,15 @@ class SuspensionEstimator:
             t = self._sample_time
             acc_sprung, acc_unsprung, deflection = self.sensors.remove(
                 *(line.push(t, float(v)) for line, v in zip(self._aligners, (acc_sprung, acc_unsprung, deflection))))
-        acc_sprung, acc_unsprung = self._standstill_bias(acc_sprung, acc_unsprung, speed, h)
+        if math.isfinite(speed):  # a speed that is not finite keeps the last motion
+            self.motion = MOVING if abs(speed) >= cfg.tuning.standstill_speed else STANDING
+        acc_sprung, acc_unsprung = self._standstill_bias(acc_sprung, acc_unsprung, h)
         if self.composed is not None:
             return self._step_composed(acc_sprung, acc_unsprung, deflection, speed, h)
         if self.model is not None:
             h = same_step(h, self.model.h)
         if not math.isfinite(speed):
             speed = self.model.speed if self.model is not None else 0.0
-        self.motion = MOVING if abs(speed) >= cfg.tuning.standstill_speed else STANDING
         status = STATUS_OK
         vals = ((float(acc_sprung), float(acc_unsprung), float(deflection)) if cfg.tuning.use_deflection
                 else (float(acc_sprung), float(acc_unsprung)))
@@ -1056,13 +1062,13 @@ class SuspensionEstimator:
         last, self._d_last = self._d_last, d
         return d if last is None or not math.isfinite(last) else 0.5 * (d + last)
 
-    def _standstill_bias(self, a_s: float, a_u: float, speed: float, h: float) -> tuple[float, float]:
+    def _standstill_bias(self, a_s: float, a_u: float, h: float) -> tuple[float, float]:
         """The accelerations less the biases learned while the car stood (standstill_bias.py).
         The biases in use change when the car moves off after a stand; at its first move (the
         road filter has seen only the standing car) the road filter restarts from rest, so that
         the bias it integrated while standing leaves nothing behind."""
         learner = self.standstill
-        standing = not abs(speed) >= self.cfg.tuning.standstill_speed if math.isfinite(speed) else not self._moved
+        standing = self.motion == STANDING
         was_standing = learner.standing_for > 0.0
         learner.step(standing, a_s, a_u, h)
         if not standing and was_standing and learner.state == LEARNED:
@@ -1095,9 +1101,7 @@ class SuspensionEstimator:
             K, P = sol
             var = band_error_variance(m.Phi, m.H, K, self.R, m.h, iso8608.class_psd_n0(cls), m.speed,
                                       self.cfg.profile_cutoff, m.vehicle, self.acc_sampling, IZR)
-            ratio = var / float(P[IZR, IZR]) if P[IZR, IZR] > 0 else math.nan
-            if not 0.0 < ratio <= 1e3:  # garbage from an ill-conditioned vehicle: keep P
-                ratio = 1.0
+            ratio = _checked_ratio(var, P)
         self._band_cache = (m, cls, ratio)
         return ratio
 
@@ -1141,7 +1145,6 @@ class SuspensionEstimator:
             h = same_step(h, f.h)
         speed = abs(float(speed)) if math.isfinite(speed) else self._speed_last
         self._speed_last = speed
-        self.motion = MOVING if speed >= cfg.tuning.standstill_speed else STANDING
         vals = (float(acc_sprung), float(acc_unsprung), float(deflection))
         self.time += h
         self._h = h

@@ -109,17 +109,31 @@ def reference_profile(distance: np.ndarray, height: np.ndarray, cutoff: float = 
     return highpass_profile(distance, height, cutoff)
 
 
+def profile_scores(t: np.ndarray, distance: np.ndarray, profile: np.ndarray, truth: np.ndarray,
+                   std: np.ndarray | None = None, cutoff: float = PROFILE_CUTOFF,
+                   warmup: float = WARMUP) -> dict[str, float]:
+    """Scores of ``profile`` (m, e.g. road_profile_est) against ``reference_profile`` of the true
+    elevation ``truth`` (m) at ``distance`` (m), after ``warmup`` s of the times ``t`` (s). Keys:
+    profile_rmse_mm, profile_rms_mm (of the reference), profile_err_pct (100 rmse / rms) and,
+    with ``std`` (the reported 1-sigma, m), profile_coverage: the share of errors within +-2 std."""
+    ref = reference_profile(distance, truth, cutoff)
+    e, r = _cut(t, np.asarray(profile, float) - ref, ref, warmup=warmup)
+    out = {"profile_rmse_mm": float(1e3 * np.sqrt(np.mean(e ** 2))),
+           "profile_rms_mm": float(1e3 * np.sqrt(np.mean(r ** 2))),
+           "profile_err_pct": float(100 * np.sqrt(np.mean(e ** 2) / np.mean(r ** 2)))}
+    if std is not None:
+        (s,) = _cut(t, np.asarray(std, float), warmup=warmup)
+        out["profile_coverage"] = float(np.mean(np.abs(e) <= 2 * s))
+    return out
+
+
 def band_scores(t: np.ndarray, distance: np.ndarray, est: np.ndarray, truth: np.ndarray,
                 cutoff: float = PROFILE_CUTOFF, warmup: float = WARMUP) -> dict[str, float]:
-    """The error of a road estimate ``est`` against the true elevation ``truth`` (m) in the distance
-    band of ``reference_profile``: both pass the same high-pass in distance, so a level, a grade
-    or a drift longer than ``cutoff`` m leaves no error. Scored after ``warmup`` s of the times
-    ``t`` (s). Keys: band_rmse_mm, band_err_pct (100 rms error / rms of the band profile)."""
-    e = reference_profile(distance, est, cutoff) - reference_profile(distance, truth, cutoff)
-    r = reference_profile(distance, truth, cutoff)
-    e, r = _cut(t, e, r, warmup=warmup)
-    return {"band_rmse_mm": float(1e3 * np.sqrt(np.mean(e ** 2))),
-            "band_err_pct": float(100 * np.sqrt(np.mean(e ** 2) / np.mean(r ** 2)))}
+    """The error of any road estimate ``est`` (m) in the distance band of ``reference_profile``:
+    ``profile_scores`` of the estimate passed through the same high-pass, so that a level, a
+    grade or a drift longer than ``cutoff`` m leaves no error. Keys: band_rmse_mm, band_err_pct."""
+    s = profile_scores(t, distance, reference_profile(distance, est, cutoff), truth, cutoff=cutoff, warmup=warmup)
+    return {"band_rmse_mm": s["profile_rmse_mm"], "band_err_pct": s["profile_err_pct"]}
 
 
 def mass_error_pct(est: np.ndarray, truth: np.ndarray) -> np.ndarray:

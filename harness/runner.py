@@ -223,13 +223,12 @@ def summary(run: Run) -> list[str]:
             lines.append(f"  road estimate: no score ({type(e).__name__}: {e})")
         if "SuspensionEstimator.road_profile_est" in r.dtype.names:
             cutoff = float(run.scenario.parameters(True).get("SuspensionEstimator.profile_cutoff", PROFILE_CUTOFF))
-            keep = t >= t[0] + warmup
-            truth = metrics.reference_profile(r["ISORoad.distance"], r["ISORoad.road_height"], cutoff)[keep]
-            e = r["SuspensionEstimator.road_profile_est"][keep] - truth
-            sd = r["SuspensionEstimator.road_profile_std"][keep]
+            p = metrics.profile_scores(t, r["ISORoad.distance"], r["SuspensionEstimator.road_profile_est"],
+                                       r["ISORoad.road_height"], r["SuspensionEstimator.road_profile_std"], cutoff,
+                                       warmup)
             lines.append(f"  road profile (high-passed at {cutoff:g} m of travel, after {warmup:g} s): rmse "
-                         f"{1e3 * rms(e):.2f} mm of {1e3 * rms(truth):.2f} mm; within 2 sigma "
-                         f"{100 * np.mean(np.abs(e) <= 2 * sd):.0f} %")
+                         f"{p['profile_rmse_mm']:.2f} mm of {p['profile_rms_mm']:.2f} mm; within 2 sigma "
+                         f"{100 * p['profile_coverage']:.0f} %")
         if "SuspensionEstimator.iri_est" in r.dtype.names:
             rows = metrics.iri_segments(r["ISORoad.distance"], r["ISORoad.iri"], r["SuspensionEstimator.iri_est"])
             if rows:

@@ -63,10 +63,10 @@ class DistanceHighpass:
         p21, p22 = e * (-k * w * w), e * (c + k * (-r2 * w - sig))
         if w * ds < 1e-4:  # G = B + A B ds / 2 + A^2 B ds^2 / 6, B = (0, 1)
             g1 = ds / 2.0 - r2 * w * ds * ds / 6.0
-            g2 = 1.0 - r2 * w * ds / 2.0 + (2.0 * w * w - w * w) * ds * ds / 6.0
+            g2 = 1.0 - r2 * w * ds / 2.0 + w * w * ds * ds / 6.0
         else:  # G = A^-1 (Phi - I) B / ds, A^-1 = [[-sqrt(2) w, -1], [w^2, 0]] / w^2
             g1 = (-r2 * w * p12 - (p22 - 1.0)) / (w * w * ds)
-            g2 = (w * w * p12) / (w * w * ds)
+            g2 = p12 / ds
         return p11, p12, p21, p22, g1, g2
 
     def step(self, ds: float, height: float) -> float:
@@ -83,10 +83,6 @@ class DistanceHighpass:
         self.x1 = p11 * x1 + p12 * x2 + g1 * du
         self.x2 = p21 * x1 + p22 * x2 + g2 * du
         return self.x2
-
-    def response(self, n: np.ndarray) -> np.ndarray:
-        """Complex gain at spatial frequencies n (cycle/m)."""
-        return band_response(n, self.cutoff)
 
 
 def highpass_profile(distance: np.ndarray, height: np.ndarray, cutoff: float = PROFILE_CUTOFF) -> np.ndarray:

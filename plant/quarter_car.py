@@ -103,9 +103,10 @@ class QuarterCar:
         """Empty delay lines holding the car at rest at time 0 (accelerations and deflection 0):
         until a channel's delay has passed it reports the rest it saw before the start, not the
         first step's values undelayed."""
-        self._delays = [DelayLine(d) for d in self.errors.delays]
         self.time = 0.0  # s since settle, the clock of the delays
+        self._delays = None  # no sensor errors: the measured values are the true ones plus noise
         if not self.errors.none:
+            self._delays = [DelayLine(d) for d in self.errors.delays]
             for line in self._delays:
                 line.push(0.0, 0.0)
 
@@ -151,7 +152,7 @@ class QuarterCar:
         self._noise_i += 1
         n = self.noise
         clean = (acc[0], acc[1], z_s - z_u)
-        if not self.errors.none:
+        if self._delays is not None:
             self.time += h
             clean = self.errors.apply(*(line.push(self.time, v) for line, v in zip(self._delays, clean)))
         self.measured = (clean[0] + n.acc_sprung * e[0], clean[1] + n.acc_unsprung * e[1],

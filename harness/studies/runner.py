@@ -28,11 +28,12 @@ from collections import defaultdict
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
 import numpy as np
 
+from ...plant.sensors import SensorErrors
 from ..cosim import CoSimulation, SimulationError, System
 from ..metrics import highpass, mass_error_pct, road_scores
 
@@ -56,8 +57,7 @@ NOISE_SEED_OFFSET = 1000
 # The sensor errors of a plant (plant/sensors.py), the QuarterCar and SuspensionEstimator parameters
 # of these names (spelled out, as VEHICLE_KEYS): m, m/s2, m/s2, 1, 1, s, s, s. ``RunSpec.sensor_errors``
 # holds their values in this order.
-SENSOR_ERROR_KEYS = ("deflection_offset", "acc_sprung_bias", "acc_unsprung_bias", "acc_sprung_scale",
-                     "acc_unsprung_scale", "acc_sprung_delay", "acc_unsprung_delay", "deflection_delay")
+SENSOR_ERROR_KEYS = tuple(f.name for f in fields(SensorErrors))  # the plant's sensor-error parameters
 TRACE_WINDOW = 3.0  # s of road kept for plots, from the end of the warm-up
 
 

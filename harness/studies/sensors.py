@@ -46,19 +46,20 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
-from ..metrics import mass_error_pct, reference_profile, road_scores
+from ...plant.sensors import SensorErrors
+from ..metrics import mass_error_pct, profile_scores, road_scores
 from .runner import (CLASS_LETTERS, NOMINAL_MASS, PAPER000_VEHICLE, SENSOR_ERROR_KEYS, Estimator, RunSpec, Study,
                      build_system, noise_params, plant_params, simulate, vehicle_params, verdict, whole_steps)
 
 KIND = "sensors"  # RunSpec.study of its runs
 IDEAL = "ideal"
 AVERAGED = "1 kHz averaged"
-NONE = {"deflection_offset": 0.0, "acc_sprung_bias": 0.0, "acc_unsprung_bias": 0.0, "acc_sprung_scale": 1.0,
-        "acc_unsprung_scale": 1.0, "acc_sprung_delay": 0.0, "acc_unsprung_delay": 0.0, "deflection_delay": 0.0}
+NONE = asdict(SensorErrors())  # no error: the plant's defaults
 # case -> the plant's sensor errors (m, m/s2, 1, s; the others none)
 ERRORS: dict[str, dict[str, float]] = {
     IDEAL: {},
@@ -157,13 +158,12 @@ def run(spec: RunSpec) -> dict:
                          spec.duration)
     t, truth = r["time"], r["ISORoad.road_height"]
     scored = t >= t[0] + spec.warmup
-    profile = reference_profile(r["ISORoad.distance"], truth)  # the contract's default profile_cutoff
     out: dict = {"timing": timing, "estimators": {}}
     for n in names:
         s = road_scores(t, r[f"{n}.road_height_est"], truth, r[f"{n}.road_height_std"], warmup=spec.warmup)
-        e = (r[f"{n}.road_profile_est"] - profile)[scored]
-        s["profile_rmse_mm"] = float(1e3 * np.sqrt(np.mean(e ** 2)))
-        s["profile_coverage"] = float(np.mean(np.abs(e) <= 2 * r[f"{n}.road_profile_std"][scored]))
+        p = profile_scores(t, r["ISORoad.distance"], r[f"{n}.road_profile_est"], truth, r[f"{n}.road_profile_std"],
+                           warmup=spec.warmup)  # the contract's default profile_cutoff
+        s["profile_rmse_mm"], s["profile_coverage"] = p["profile_rmse_mm"], p["profile_coverage"]
         m = mass_error_pct(r[f"{n}.sprung_mass_est"][scored], spec.mass)
         s["mass_err_mean_pct"] = float(np.mean(m))
         s["mass_err_max_abs_pct"] = float(np.max(np.abs(m)))
