@@ -18,6 +18,7 @@ from .model import DiscreteModel, ModelNoise, RoadModel
 from .profile_check import LongWaveCheck
 from .response_class import ResponseClassifier
 from .road_class import RoadClassifier
+from .road_profile import Unreference
 from .standstill_bias import StandstillBias
 from .start_offset import StartOffset
 from .suspension import Blend, EstimatorConfig, SuspensionEstimator
@@ -30,4 +31,4 @@ STATE_CLASSES: tuple[type, ...] = (
     IMM, MassIMM, MovingMassIMM, IMMRoad, MovingIMMRoad, VBAKF, VBRoadFilter, NonlinearModel, EKF, UKF,
     FilterpyUKF, _FilterpyEKF, DualObserver, NonlinearRoadFilter, UKFRoadFilter, DualObserverFilter,
     Vehicle, IRIMeter, AirSpring, PiecewiseDamper, BumpStops, SensorErrors, DelayLine,
-    DistanceHighpass, LongWaveCheck, StandstillBias)
+    DistanceHighpass, LongWaveCheck, StandstillBias, Unreference)

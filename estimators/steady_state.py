@@ -175,20 +175,47 @@ def raw_error_variance(Phi, H, K, R, h: float, gd_n0: float, speed: float, vehic
 
 def band_error_variance(Phi, H, K, R, h: float, gd_n0: float, speed: float, cutoff: float,
                         vehicle: Vehicle = DEFAULT_VEHICLE, acc_sampling: int = 0, row: int = 4,
-                        nf: int = 600) -> float:
+                        nf: int = 600, reference: tuple[float, float] | None = None) -> float:
     """Steady-state variance (m^2) of the road-height error of the filter with gain K in the
     distance band of plant.profile_band (the error high-passed in distance at ``cutoff`` m, at
-    ``speed`` m/s a high-pass in time at speed / cutoff Hz): the integral of |B|^2 (|T - 1|^2 S_r
-    + sum_i |F_i|^2 S_n,i) over frequency, with the ISO 8608 road PSD S_r of ``gd_n0`` and the
-    white sensor noises of R (one-sided PSD 2 h R_ii up to Nyquist), on nf log-spaced
-    frequencies from a twentieth of the band's corner. T and F_i as in ``road_error_variance``.
-    This is the error of ``road_profile_est`` when the vehicle is the model's."""
+    ``speed`` m/s a high-pass in time at speed / cutoff Hz): the integral of |B|^2 (|T/T_r - 1|^2
+    S_r + sum_i |F_i/T_r|^2 S_n,i) over frequency, with the ISO 8608 road PSD S_r of ``gd_n0`` and
+    the white sensor noises of R (one-sided PSD 2 h R_ii up to Nyquist), on nf log-spaced
+    frequencies from a twentieth of the band's corner. T and F_i as in ``road_error_variance``;
+    T_r the reference's high-pass (``reference_highpass`` of ``reference`` = (f_ref, zeta_ref))
+    that road_profile.Unreference takes off the estimate, 1 without. This is the error of
+    ``road_profile_est`` when the vehicle is the model's."""
     v = max(abs(float(speed)), 0.1)
     f = np.geomspace(0.05 * v / cutoff, 0.999 / (2 * h), nf)
     T, F = _road_and_noise_transfers(Phi, H, K, h, f, vehicle, acc_sampling, row)
+    if reference is not None:
+        inv = 1.0 / reference_highpass(f, *reference)
+        T, F = T * inv, F * inv[:, None]
     Sn = 2 * h * np.diag(R)
     S = np.abs(T - 1) ** 2 * iso_psd_time(f, gd_n0, v) + (np.abs(F) ** 2 * Sn).sum(1)
     return float(np.trapezoid(np.abs(band_response(f / v, cutoff)) ** 2 * S, f))
+
+
+def band_calibration_sensitivity(Phi, H, K, h: float, gd_n0: float, speed: float, cutoff: float,
+                                 vehicle: Vehicle = DEFAULT_VEHICLE, acc_sampling: int = 0, row: int = 4,
+                                 nf: int = 600, reference: tuple[float, float] | None = None
+                                 ) -> tuple[np.ndarray, np.ndarray]:
+    """(V_g, V_tau), one value per channel: the steady-state variance of the road error in the
+    band of ``band_error_variance`` that a gain error g - 1 (V_g, m^2 per unit^2) or a delay tau
+    (V_tau, m^2/s^2) of that channel alone adds, to first order: a channel's error is then
+    (g - 1) y or -tau dy/dt, y its response to the road (plant_transfer G_i), so V = int |B|^2
+    |F_i G_i|^2 S_r (1 or (2 pi f)^2) df, with F_i as in ``band_error_variance``."""
+    v = max(abs(float(speed)), 0.1)
+    f = np.geomspace(0.05 * v / cutoff, 0.999 / (2 * h), nf)
+    zinv = np.exp(-2j * np.pi * f * h)
+    G = plant_transfer(vehicle, h, zinv, acc_sampling)[:, :K.shape[1]]
+    e = np.zeros((1, Phi.shape[0]))
+    e[0, row] = 1.0
+    F = filter_transfer(Phi, H, K, zinv, e)[:, 0, :]
+    if reference is not None:
+        F = F / reference_highpass(f, *reference)[:, None]
+    E = (np.abs(band_response(f / v, cutoff)) ** 2 * iso_psd_time(f, gd_n0, v))[:, None] * np.abs(F * G) ** 2
+    return np.trapezoid(E, f, axis=0), np.trapezoid(E * ((2 * np.pi * f) ** 2)[:, None], f, axis=0)
 
 
 def analyse(Phi, H, K, R_true, h, gd_n0, speed, vehicle=DEFAULT_VEHICLE, road_row=None,

@@ -77,9 +77,10 @@ from .model import (IVR, IVS, IVU, IZR, IZS, IZU, N_STATES, N_STATES_AVG, Discre
                     reference_step_response)
 from .profile_check import EXCESS, LongWaveCheck
 from .road_class import RoadClassifier
+from .road_profile import Unreference
 from .standstill_bias import LEARNED, StandstillBias
 from .start_offset import StartOffset
-from .steady_state import band_error_variance, raw_error_variance, reference_lag
+from .steady_state import band_calibration_sensitivity, band_error_variance, raw_error_variance, reference_lag
 from .tuning import TUNING, TUNING_FIELDS, Tuning
 from .vb_akf import vb_problems
 
@@ -370,7 +371,11 @@ class SuspensionEstimator:
         self.motion = STANDING
         self._band = DistanceHighpass(cfg.profile_cutoff)
         self._profile_u = 0.0  # m, the sum of the road estimate's increments while moving
-        self._profile_raw: float | None = None  # m, the road estimate of the last step
+        # the road estimate without the common-mode reference of the KF family's road model
+        # (road_profile.py); the identity for the estimators of the registry
+        rm = cfg.tuning.road_model
+        self._reference = (rm.f_ref, rm.zeta_ref) if self.composed is None and rm.f_ref > 0 else None
+        self.unreference = Unreference(*(self._reference or (0.0, 0.0)))
         self._band_cache: tuple | None = None  # (model, class, ratio): see _band_ratio
         self.long_wave = LongWaveCheck(cfg.profile_cutoff)
         self.model: DiscreteModel | None = None
@@ -416,6 +421,7 @@ class SuspensionEstimator:
         n = self.n_states
         kf = self.kf
         kf.x = np.zeros(n)
+        self.unreference.restart()
         self._blend.reset()
         self._hold_left = 0.0
         if self.anchor is not None:
@@ -1076,6 +1082,7 @@ class SuspensionEstimator:
             if not self._moved:
                 if self.composed is not None:
                     self.composed.reset()
+                    self.unreference.restart()
                 else:
                     self.reset_state(from_rest=True)
         if not standing:
@@ -1099,8 +1106,12 @@ class SuspensionEstimator:
         ratio = 1.0
         if sol is not None and not isinstance(kf, MMEKF):
             K, P = sol
-            var = band_error_variance(m.Phi, m.H, K, self.R, m.h, iso8608.class_psd_n0(cls), m.speed,
-                                      self.cfg.profile_cutoff, m.vehicle, self.acc_sampling, IZR)
+            gd, t = iso8608.class_psd_n0(cls), self.cfg.tuning
+            var = band_error_variance(m.Phi, m.H, K, self.R, m.h, gd, m.speed, self.cfg.profile_cutoff,
+                                      m.vehicle, self.acc_sampling, IZR, reference=self._reference)
+            v_g, v_tau = band_calibration_sensitivity(m.Phi, m.H, K, m.h, gd, m.speed, self.cfg.profile_cutoff,
+                                                      m.vehicle, self.acc_sampling, IZR, reference=self._reference)
+            var += t.calibration_gain_std ** 2 * float(v_g[:2].sum()) + t.calibration_delay_std ** 2 * float(v_tau.sum())
             ratio = _checked_ratio(var, P)
         self._band_cache = (m, cls, ratio)
         return ratio
@@ -1113,11 +1124,11 @@ class SuspensionEstimator:
         (m^2): the variance of the band error; held while standing."""
         moving = self.motion == MOVING
         if status == STATUS_REINIT or not math.isfinite(road):
-            self._profile_raw = None
+            self.unreference.restart()
         else:
-            if moving and self._profile_raw is not None:
-                self._profile_u += road - self._profile_raw
-            self._profile_raw = road
+            du = self.unreference.step(road, h)
+            if moving:
+                self._profile_u += du
         ds = abs(speed) * h if moving else 0.0
         y = out["road_profile_est"] = self._band.step(ds, self._profile_u)
         check = self.long_wave

@@ -6,20 +6,31 @@ and does not move while the vehicle stands. ``PROFILE_CUTOFF`` is 300 ft (91.44 
 cut-off of profile processing (ProVAL's default high-pass): every wavelength the IRI responds to
 (up to ~30 m) and ISO 8608's classification band (up to ~90 m, n >= 0.011 cycle/m) pass.
 
-The filter is the second-order Butterworth high-pass H(p) = p^2 / (p^2 + sqrt(2) w p + w^2) in
-distance (p = d/ds, w = 2 pi / cutoff rad/m), discretised exactly for a profile linear in
-distance between samples: any spacing, the same result at the points two spacings share (to
-rounding), and a step with no distance travelled passes the change of the input unfiltered (a
-high-pass passes a jump); the caller decides whether a change while standing is a change of the
-road (it is not: ``DistanceHighpass.step`` with ``ds`` = 0 and the same height holds the output).
+The filter is the third-order Butterworth high-pass
+H(p) = p^3 / ((p + w) (p^2 + w p + w^2)) in distance (p = d/ds, w = 2 pi / cutoff rad/m).
+Third order because a vertical curve (an elevation of constant curvature k, a parabola in
+distance) and a constant bias on both accelerometers are the same measurements (a car on the
+curve at speed v accelerates at v^2 k, body and wheel alike, with a static deflection of
+m_s v^2 k / k_s: tests/test_profile_band.py shows it on the plant). A second-order high-pass
+turns the parabola into a constant k / w^2 (a 0.1 m/s^2 bias at 40 km/h: 172 mm), which no
+estimator can tell from the road; a third-order one removes it, as it removes a level and a grade.
+
+It is discretised exactly for a profile linear in distance between samples: any spacing, the
+same result at the points two spacings share (to rounding), and a step with no distance travelled
+passes the change of the input unfiltered (a high-pass passes a jump); the caller decides whether
+a change while standing is a change of the road (it is not: ``DistanceHighpass.step`` with ``ds``
+= 0 and the same height holds the output).
 """
 from __future__ import annotations
 
+import cmath
 import math
+from functools import lru_cache
 
 import numpy as np
 
 PROFILE_CUTOFF = 91.44  # m, 300 ft
+PROFILE_ORDER = 3
 CUTOFF_RANGE = (1.0, 10000.0)  # m
 
 
@@ -27,12 +38,32 @@ def band_response(n: np.ndarray, cutoff: float = PROFILE_CUTOFF) -> np.ndarray:
     """Complex gain of the high-pass at spatial frequencies n (cycle/m)."""
     w = 2.0 * math.pi / cutoff
     p = 2j * np.pi * np.asarray(n, float)
-    return p * p / (p * p + math.sqrt(2.0) * w * p + w * w)
+    return p ** 3 / ((p + w) * (p * p + w * p + w * w))
+
+
+@lru_cache(maxsize=16)
+def _eigen(w: float) -> tuple:
+    """(eigenvalues, V^-1) of the companion matrix of D(p) (``DistanceHighpass``): its
+    eigenvectors are (1, l, l^2), so row i of V^-1 holds the coefficients of the Lagrange
+    polynomial of l_i, (l^2 - (a + b) l + a b) / ((l_i - a) (l_i - b))."""
+    r3 = math.sqrt(3.0)
+    lam = (complex(-w, 0.0), complex(-0.5 * w, 0.5 * r3 * w), complex(-0.5 * w, -0.5 * r3 * w))
+    vinv = []
+    for i, li in enumerate(lam):
+        a, b = (lam[j] for j in range(3) if j != i)
+        den = (li - a) * (li - b)
+        vinv.append((a * b / den, -(a + b) / den, 1.0 / den))
+    return lam, tuple(vinv)
 
 
 class DistanceHighpass:
     """The high-pass of a profile sampled at increasing distances (``cutoff`` m); ``y`` the last
-    output (m). Starts from rest at the first height it is given (output 0 there)."""
+    output (m). Starts from rest at the first height it is given (output 0 there).
+
+    State space of p^2 / D(p) driven by the slope du/ds, constant between samples (controllable
+    form, D(p) = p^3 + 2 w p^2 + 2 w^2 p + w^3, y = x3); over a distance ds
+    x <- Phi x + G du with Phi = V e^(L ds) V^-1 and G = V ((e^(L ds) - 1) / (L ds)) V^-1 B
+    from the eigenvalues L (-w, w (-1 +- i sqrt(3)) / 2) of the companion matrix."""
 
     def __init__(self, cutoff: float = PROFILE_CUTOFF):
         if not CUTOFF_RANGE[0] <= cutoff <= CUTOFF_RANGE[1]:
@@ -40,49 +71,42 @@ class DistanceHighpass:
                              f"[{CUTOFF_RANGE[0]:g}, {CUTOFF_RANGE[1]:g}]")
         self.cutoff = float(cutoff)
         self.w = 2.0 * math.pi / self.cutoff
-        self.x1 = self.x2 = 0.0  # states of p / (p^2 + sqrt(2) w p + w^2) driven by du/ds; y = x2
+        self.x = [0.0, 0.0, 0.0]
         self.u: float | None = None  # the last input height (m)
         self._ds = None  # the step the coefficients below are for
-        self._c: tuple[float, ...] = ()
+        self._c: tuple = ()
 
     @property
     def y(self) -> float:
-        return self.x2
+        return self.x[2]
 
-    def _coefficients(self, ds: float) -> tuple[float, ...]:
-        """(Phi as 4 numbers, G as 2): x <- Phi x + G du over a distance ds, G = Gamma / ds."""
-        w = self.w
-        r2 = math.sqrt(2.0)
-        sig, beta = -w / r2, w / r2
+    def _coefficients(self, ds: float) -> tuple:
+        """(Phi as 3 rows, G): x <- Phi x + G du over a distance ds."""
         if ds <= 0.0:
-            return 1.0, 0.0, 0.0, 1.0, 0.0, 1.0
-        e, c, s = math.exp(sig * ds), math.cos(beta * ds), math.sin(beta * ds)
-        # expm(A ds) = e^(sig ds) [cos I + sin / beta (A - sig I)], A = [[0, 1], [-w^2, -sqrt(2) w]]
-        k = s / beta
-        p11, p12 = e * (c - k * sig), e * k
-        p21, p22 = e * (-k * w * w), e * (c + k * (-r2 * w - sig))
-        if w * ds < 1e-4:  # G = B + A B ds / 2 + A^2 B ds^2 / 6, B = (0, 1)
-            g1 = ds / 2.0 - r2 * w * ds * ds / 6.0
-            g2 = 1.0 - r2 * w * ds / 2.0 + w * w * ds * ds / 6.0
-        else:  # G = A^-1 (Phi - I) B / ds, A^-1 = [[-sqrt(2) w, -1], [w^2, 0]] / w^2
-            g1 = (-r2 * w * p12 - (p22 - 1.0)) / (w * w * ds)
-            g2 = p12 / ds
-        return p11, p12, p21, p22, g1, g2
+            return ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)), (0.0, 0.0, 1.0)
+        lam, vinv = _eigen(self.w)
+        e = [cmath.exp(li * ds) for li in lam]
+        g = [(1.0 + 0.5 * li * ds) if abs(li * ds) < 1e-5 else (ei - 1.0) / (li * ds) for li, ei in zip(lam, e)]
+        phi = tuple(tuple(sum((lam[i] ** r) * e[i] * vinv[i][c] for i in range(3)).real for c in range(3))
+                    for r in range(3))
+        G = tuple(sum((lam[i] ** r) * g[i] * vinv[i][2] for i in range(3)).real for r in range(3))
+        return phi, G
 
     def step(self, ds: float, height: float) -> float:
         """Advance by ``ds`` m (>= 0) to a point of height ``height`` m; returns the output (m)."""
         if self.u is None:
             self.u = float(height)
-            return self.x2
+            return self.x[2]
         if ds != self._ds:
             self._c, self._ds = self._coefficients(ds), ds
-        p11, p12, p21, p22, g1, g2 = self._c
+        (r0, r1, r2), G = self._c
         du = height - self.u
         self.u = float(height)
-        x1, x2 = self.x1, self.x2
-        self.x1 = p11 * x1 + p12 * x2 + g1 * du
-        self.x2 = p21 * x1 + p22 * x2 + g2 * du
-        return self.x2
+        x0, x1, x2 = self.x
+        self.x = [r0[0] * x0 + r0[1] * x1 + r0[2] * x2 + G[0] * du,
+                  r1[0] * x0 + r1[1] * x1 + r1[2] * x2 + G[1] * du,
+                  r2[0] * x0 + r2[1] * x1 + r2[2] * x2 + G[2] * du]
+        return self.x[2]
 
 
 def highpass_profile(distance: np.ndarray, height: np.ndarray, cutoff: float = PROFILE_CUTOFF) -> np.ndarray:

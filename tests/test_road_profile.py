@@ -56,11 +56,15 @@ def test_band_variance_without_a_band_is_the_raw_variance():
         assert band_error_variance(m.Phi, m.H, K, R, H, gd, V, 30.0) < 0.05 * raw
 
 
+CALIBRATED = {"calibration_gain_std": 0.0, "calibration_delay_std": 0.0}
+
+
 def test_profile_error_and_its_std():
-    """Ideal sensors, three roads: the band error is what the std says (rms ratio 0.7-1.3 over the
-    runs; one road's realised error alone is 0.6-1.35x, ten roads 0.99x) and +-2 std covers 85-100 %
-    of it after 10 s (ten roads: 96 %); the default and the KF alike."""
-    for kw in ({}, {"road_estimator": 0}):
+    """Ideal sensors, three roads, the estimator told they are calibrated (no allowance for gain
+    and delay errors): the band error is what the std says (rms ratio 0.7-1.3 over the runs) and
+    +-2 std covers 85-100 % of it after 10 s; the default and the KF alike. At its defaults the
+    std allows for the calibration errors of plant/sensors.py and is larger."""
+    for kw in (CALIBRATED, {"road_estimator": 0, **CALIBRATED}):
         sq_err = sq_std = inside = n = 0.0
         for seed in (1, 2, 3):
             t, s, meas, zr, v = drive(seed, 25.0)
@@ -72,19 +76,31 @@ def test_profile_error_and_its_std():
             inside, n = inside + np.sum(np.abs(e) <= 2 * std), n + len(e)
         assert 0.7 < np.sqrt(sq_err / sq_std) < 1.3, kw
         assert 0.85 <= inside / n <= 1.0, kw
+        if seed == 3:
+            assert np.median(estimate(meas, v, **{k: w for k, w in kw.items() if k not in CALIBRATED})
+                             ["road_profile_std"][late]) > 2 * np.median(std)
 
 
-def test_a_deflection_offset_stays_out_of_the_band():
-    """A 5 mm zero error of the deflection sensor: the default's road_height_est is off by more than
-    a metre on the KF, but its profile in band is within 1.6x of the ideal run's (the KF's is not:
-    a static deflection error reads as a body acceleration it integrates, docs/real-sensors.md)."""
+def test_slow_sensor_errors_stay_out_of_the_band():
+    """A body accelerometer bias of 0.1 m/s^2 and a deflection offset of 5 mm, the ends of their
+    ranges: with the bias, the KF's band error stays within 1.3x of the ideal run's (the road
+    estimate freed of the reference drifts as a parabola, road_profile.Unreference, which the
+    third-order band removes; the offset is not absorbed by the KF: 1.2 mm against 0.15 mm); the
+    default's stays within 5x with either (they make its exact-model anchor disagree with the
+    force-error filter, which is then used alone: 0.4-0.9 mm against 0.16-0.19 mm), and its
+    +-2 std covers 90 % or more of it."""
     t, s, meas, zr, v = drive(1, 30.0)
-    _, _, meas_off, _, _ = drive(1, 30.0, SensorErrors(deflection_offset=5e-3))
     truth = reference_profile(s, zr)
     late = t > 10.0
     rms = lambda out: np.sqrt(np.mean((out["road_profile_est"] - truth)[late] ** 2))  # noqa: E731
-    assert rms(estimate(meas_off, v)) < 1.6 * rms(estimate(meas, v))
-    assert rms(estimate(meas_off, v, road_estimator=0)) > 5 * rms(estimate(meas, v, road_estimator=0))
+    ideal, ideal_kf = rms(estimate(meas, v)), rms(estimate(meas, v, road_estimator=0))
+    for errors in (SensorErrors(acc_sprung_bias=0.1), SensorErrors(deflection_offset=5e-3)):
+        _, _, m_err, _, _ = drive(1, 30.0, errors)
+        out = estimate(m_err, v)
+        assert rms(out) < 5 * ideal, errors
+        assert np.mean(np.abs(out["road_profile_est"] - truth)[late] <= 2 * out["road_profile_std"][late]) >= 0.9
+        if errors.acc_sprung_bias:
+            assert rms(estimate(m_err, v, road_estimator=0)) < 1.3 * ideal_kf
 
 
 def test_the_profile_holds_while_the_car_stands():
