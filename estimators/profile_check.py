@@ -1,10 +1,10 @@
 """A plausibility check of road_profile_est's long wavelengths against the road's ISO class.
 
-A constant error the road filter cannot absorb (a body accelerometer's bias: docs/real-sensors.md)
-makes the estimate drift for a minute or two; in the distance band of the profile that drift is
-long-wavelength content far beyond what the road has (ISO C, 40 km/h, a 0.1 m/s^2 bias: 30-100 mm
-of error against ~8 mm of true content between 30 and 91 m). The filter's covariance knows nothing
-of it. The check compares the running mean square of the profile between ``cutoff`` / 3 and
+An error the road filter cannot absorb makes the estimate drift; in the distance band of the
+profile that drift is long-wavelength content beyond what the road has (before the profile was
+freed of the filter's reference, a 0.1 m/s^2 body accelerometer bias at 40 km/h on ISO C: 30-100 mm
+of error against ~8 mm of true content between 30 and 91 m; docs/real-sensors.md). The filter's
+covariance knows nothing of it. The check compares the running mean square of the profile between ``cutoff`` / 3 and
 ``cutoff`` m (a band-pass in distance) with the ISO 8608 expectation of that band for the assumed
 class (``ratio`` 4: one class rougher, as a class spans a factor 4 in PSD and the class identified
 online may be one off). While it is more than ``ratio`` times that expectation the state is ``EXCESS`` and

@@ -62,7 +62,7 @@ from ..plant import iso8608
 from ..plant.iri import SEGMENT_RANGE, IRIMeter
 from ..plant.profile_band import CUTOFF_RANGE, PROFILE_CUTOFF, DistanceHighpass
 from ..plant.quarter_car import NOISE_STD_RANGES
-from ..plant.sensors import SENSOR_ERROR_RANGES, DelayLine, SensorErrors
+from ..plant.sensors import CALIBRATION_ALLOWANCE, SENSOR_ERROR_RANGES, DelayLine, SensorErrors
 from ..plant.step_size import same_step
 from ..plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_DAMPER
 from ..plant.vehicle import Vehicle, VEHICLE_RANGES, check_range
@@ -238,6 +238,10 @@ class EstimatorConfig:
     acc_sprung_delay: float = 0.0  # s
     acc_unsprung_delay: float = 0.0  # s
     deflection_delay: float = 0.0  # s
+    # what road_profile_std allows for the calibration errors it is not told (1-sigma): each
+    # accelerometer's gain error (relative) and each channel's delay (s); 0 = calibrated sensors
+    calibration_gain_std: float = CALIBRATION_ALLOWANCE["calibration_gain_std"][0]
+    calibration_delay_std: float = CALIBRATION_ALLOWANCE["calibration_delay_std"][0]
     # everything else is a fixed choice, with its reason, in tuning.py
     tuning: Tuning = TUNING
 
@@ -269,6 +273,8 @@ class EstimatorConfig:
         msgs.append(check_range("iri_segment", float(self.iri_segment), *SEGMENT_RANGE))
         msgs.append(check_range("profile_cutoff", float(self.profile_cutoff), *CUTOFF_RANGE))
         for name, (lo, hi) in SENSOR_ERROR_RANGES.items():
+            msgs.append(check_range(name, float(getattr(self, name)), lo, hi))
+        for name, (_, (lo, hi)) in CALIBRATION_ALLOWANCE.items():
             msgs.append(check_range(name, float(getattr(self, name)), lo, hi))
         msgs += self.tuning.problems()
         msgs += vb_problems(self)
@@ -1106,12 +1112,12 @@ class SuspensionEstimator:
         ratio = 1.0
         if sol is not None and not isinstance(kf, MMEKF):
             K, P = sol
-            gd, t = iso8608.class_psd_n0(cls), self.cfg.tuning
+            gd, c = iso8608.class_psd_n0(cls), self.cfg
             var = band_error_variance(m.Phi, m.H, K, self.R, m.h, gd, m.speed, self.cfg.profile_cutoff,
                                       m.vehicle, self.acc_sampling, IZR, reference=self._reference)
             v_g, v_tau = band_calibration_sensitivity(m.Phi, m.H, K, m.h, gd, m.speed, self.cfg.profile_cutoff,
                                                       m.vehicle, self.acc_sampling, IZR, reference=self._reference)
-            var += t.calibration_gain_std ** 2 * float(v_g[:2].sum()) + t.calibration_delay_std ** 2 * float(v_tau.sum())
+            var += c.calibration_gain_std ** 2 * float(v_g[:2].sum()) + c.calibration_delay_std ** 2 * float(v_tau.sum())
             ratio = _checked_ratio(var, P)
         self._band_cache = (m, cls, ratio)
         return ratio

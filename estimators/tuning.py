@@ -66,12 +66,6 @@ class Tuning:
     # from it by more than this many of the force-error filter's own std (road height or body
     # velocity); 0 = never
     anchor_gate: float = 5.0
-    # the sensors' calibration the band error std allows for (road_profile_std): per accelerometer a
-    # gain error (1-sigma, relative) and per channel a delay (1-sigma, s), at the ends of the ranges
-    # of plant/sensors.py. They are not observable from the sensors (docs/real-sensors.md); with
-    # the std of the filter alone, a 3 % gain error left 46 % of the band error within +-2 std
-    calibration_gain_std: float = 0.03
-    calibration_delay_std: float = 0.002
     anchor_hold: float = 0.5  # s: after an update without every channel the output fades from the anchor's
     # Mass feedback: the road filter is rebuilt at the since-last-change least-squares mass
     # (MassEstimator.mass_slow) when it differs from the model mass by more than
@@ -165,8 +159,6 @@ class Tuning:
                 check_range("damping_rebuild_tol_late", float(self.damping_rebuild_tol_late), 0.0, 1.0),
                 check_range("mass_rebuild_tol_late", float(self.mass_rebuild_tol_late), 0.0, 1.0),
                 check_range("force_bias_q", float(self.force_bias_q), 0.0, 1e12),
-                check_range("calibration_gain_std", float(self.calibration_gain_std), 0.0, 0.5),
-                check_range("calibration_delay_std", float(self.calibration_delay_std), 0.0, 0.1),
                 check_range("force_bias_tau", float(self.force_bias_tau), 0.01, 1e4),
                 check_range("nonlinear_std_factor", float(self.nonlinear_std_factor), 1.0, 10.0),
                 check_range("default_class", self.default_class, 1, 8),

@@ -25,6 +25,13 @@ SENSOR_ERROR_RANGES: dict[str, tuple[float, float]] = {
     "deflection_delay": (0.0, 0.05),  # s
 }
 CHANNELS = ("acc_sprung", "acc_unsprung", "deflection")
+# what an estimator not told its sensors' calibration allows for (1-sigma): each accelerometer's
+# gain error and each channel's delay, at the ends of what real sensors have (docs/real-sensors.md:
+# a MEMS accelerometer's gain 1-3 % off, a logger's skew of a few ms); name: (default, range)
+CALIBRATION_ALLOWANCE: dict[str, tuple[float, tuple[float, float]]] = {
+    "calibration_gain_std": (0.03, (0.0, 0.5)),  # 1
+    "calibration_delay_std": (0.002, (0.0, 0.05)),  # s
+}
 
 
 @dataclass(frozen=True)

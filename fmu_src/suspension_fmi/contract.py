@@ -15,7 +15,7 @@ from ..plant.iri import SEGMENT_RANGE
 from ..plant.profile_band import CUTOFF_RANGE, PROFILE_CUTOFF
 from ..plant.profile_formats import MAX_POINTS
 from ..plant.quarter_car import NOISE_STD_RANGES, SensorNoise
-from ..plant.sensors import SENSOR_ERROR_RANGES, SensorErrors
+from ..plant.sensors import CALIBRATION_ALLOWANCE, SENSOR_ERROR_RANGES, SensorErrors
 from ..plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_BUMP_STOPS, DEFAULT_DAMPER, FORCE_RANGES
 from ..plant.vehicle import DEFAULT_VEHICLE, VEHICLE_RANGES
 
@@ -346,14 +346,20 @@ SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
                 "profilers: every wavelength the IRI responds to passes)", CUTOFF_RANGE),
     Var("road_profile_est", "output", "Real", "m", None,
         "estimated road profile as inertial profilers report it: the road elevation high-passed in distance at "
-        "profile_cutoff (second-order Butterworth; harness.metrics.reference_profile gives it from a true profile), "
-        "from 0 at the start; it holds while the car stands (speed below 0.5 m/s). Constant sensor offsets and "
-        "biases, grades and the start level fall mostly outside this band"),
+        "profile_cutoff (third-order Butterworth; harness.metrics.reference_profile gives it from a true profile), "
+        "from 0 at the start; it holds while the car stands (speed below 0.5 m/s). The start level, grades, "
+        "vertical curves and the drift of constant accelerometer biases fall outside this band"),
     Var("road_profile_std", "output", "Real", "m", None,
         "1-sigma uncertainty of road_profile_est against reference_profile: the filter covariance scaled to its "
-        "steady-state error in that band on a road of the online class (road_estimator 0 and 2); for the other "
-        "estimators their raw road variance, an upper bound. Sensor errors beyond the noise are not in it "
-        "(docs/real-sensors.md)"),
+        "steady-state error in that band on a road of the online class, with the gain and delay errors of "
+        "calibration_gain_std and calibration_delay_std (road_estimator 0 and 2); for the other estimators their "
+        "raw road variance, an upper bound (docs/real-sensors.md)"),
+    _real_param("calibration_gain_std", "1", CALIBRATION_ALLOWANCE["calibration_gain_std"][0],
+                "1-sigma gain error (measured / true - 1) of each accelerometer that road_profile_std allows for; "
+                "0 for accelerometers calibrated or told (acc_*_scale)", CALIBRATION_ALLOWANCE["calibration_gain_std"][1]),
+    _real_param("calibration_delay_std", "s", CALIBRATION_ALLOWANCE["calibration_delay_std"][0],
+                "1-sigma delay (logger skew) of each channel that road_profile_std allows for; 0 for channels whose "
+                "skew is told (*_delay) or known to be none", CALIBRATION_ALLOWANCE["calibration_delay_std"][1]),
 )
 
 # HalfCar: one side of a mid-size sedan (docs/half-car.md gives the reasoning behind every default)
