@@ -15,7 +15,8 @@ a CSV every ``--spacing`` m (an inertial profiler's 25 mm by default) and the lo
 Then on other roads (ISO ``--classes`` at ``--speeds``, road seeds ``--seeds``, ``--duration`` s,
 scored after 10 s) the default estimator core (estimators.SuspensionEstimator) is told the
 plant's exact vehicle, the calibrated one and the contract's nominal one. Table 2: the HP road
-error (harness.metrics.road_scores 'err_std_hp_pct') of each, the ratio calibrated / exact, and
+error (harness.metrics.road_scores 'err_std_hp_pct': road_height_est, the profile, against
+metrics.reference_profile of the road) of each, the ratio calibrated / exact, and
 the sprung-mass error of the calibrated run (mean after the warm-up). The target: the ratio at
 most 1.1 and the mass within 1 %.
 
@@ -131,7 +132,8 @@ def evaluate(job: tuple) -> dict:
     road = SyntheticRoad(iso8608.class_psd_n0(cls), seed=seed)
     n = int(round(duration / H))
     meas = drive(plant, road, kmh / 3.6, n, noise_seed=2000 + seed)
-    zr = np.array([road.height(kmh / 3.6 * k * H) for k in range(n)])
+    d = kmh / 3.6 * np.arange(n) * H  # m, where the road was at each step
+    zr = np.array([road.height(x) for x in d])
     t = np.arange(1, n + 1) * H
     told = {"exact": {"m_s_nominal": plant.m_s, **{k: getattr(plant, k) for k in NAMES}},
             "calibrated": calibrated,
@@ -139,7 +141,7 @@ def evaluate(job: tuple) -> dict:
     row = {"case": case, "cls": cls, "kmh": kmh, "seed": seed}
     for name, params in told.items():
         road_est, mass = estimate(meas, params, kmh / 3.6)
-        row[name] = road_scores(t, road_est, zr, warmup=WARMUP)["err_std_hp_pct"]
+        row[name] = road_scores(t, road_est, zr, warmup=WARMUP, distance=d)["err_std_hp_pct"]
         if name == "calibrated":
             row["mass_pct"] = float(100 * (np.mean(mass[t >= WARMUP]) / plant.m_s - 1))
     return row

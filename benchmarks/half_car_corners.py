@@ -10,8 +10,9 @@ a SuspensionEstimator in its default configuration, told that corner's quarter c
 (``corner_vehicle``: m_s_nominal the static corner load, m_u, k_s, k_t, c_s of the axle), fed the
 body acceleration above the axle, the wheel acceleration and the deflection. Baseline: the same
 estimator on plant.QuarterCar with that corner's vehicle on the road under that wheel. Scores
-after the 10 s warm-up, means over seeds: HP road error std % (harness.metrics.road_scores)
-against the road under the wheel, mean sprung-mass error % against the static corner load;
+after the 10 s warm-up, means over seeds: HP road error std % (harness.metrics.road_scores:
+road_height_est, the profile, against metrics.reference_profile of the road under the wheel),
+mean sprung-mass error % against the static corner load;
 PASS when the half car's HP error is within RATIO times the quarter car's.
 
 The road is stepped as the FMUs' Gauss-Seidel master steps it (ISORoad before the plant): the
@@ -106,9 +107,10 @@ def estimate(meas: np.ndarray, v: Vehicle, speed: float) -> tuple[np.ndarray, np
 
 
 def scores(t: np.ndarray, road_est: np.ndarray, mass_est: np.ndarray, road: np.ndarray,
-           load: float) -> tuple[float, float]:
-    """(HP road error std %, mean sprung-mass error % against ``load`` kg) after the warm-up."""
-    hp = road_scores(t, road_est, road, warmup=WARMUP)["err_std_hp_pct"]
+           load: float, distance: np.ndarray) -> tuple[float, float]:
+    """(HP road error std %, mean sprung-mass error % against ``load`` kg) after the warm-up;
+    ``distance``: m travelled at each sample."""
+    hp = road_scores(t, road_est, road, warmup=WARMUP, distance=distance)["err_std_hp_pct"]
     return hp, float(100 * (np.mean(mass_est[t >= WARMUP]) / load - 1))
 
 
@@ -121,9 +123,9 @@ def cell(p: HalfCarParams, cls: int, speed: float, duration: float, seeds: range
         for c in CORNERS:
             v = corner_vehicle(p, c)
             meas, road = half[c]
-            hc = scores(half["t"], *estimate(meas, v, speed), road, v.m_s)
+            hc = scores(half["t"], *estimate(meas, v, speed), road, v.m_s, speed * half["t"])
             qmeas, qroad = drive_quarter_car(v, cls, speed, duration, seed, 0.0 if c == "front" else p.wheelbase)
-            qc = scores(half["t"], *estimate(qmeas, v, speed), qroad, v.m_s)
+            qc = scores(half["t"], *estimate(qmeas, v, speed), qroad, v.m_s, speed * half["t"])
             runs[c].append((hc[0], qc[0], hc[1], qc[1]))
     return {c: np.mean(r, axis=0) for c, r in runs.items()}
 
@@ -207,7 +209,7 @@ def fmu_check(p: HalfCarParams, cls: int, speed: float, duration: float, seed: i
         v = corner_vehicle(p, c)
         params.update({f"{c}.m_s_nominal": v.m_s, f"{c}.m_u": v.m_u, f"{c}.k_s": v.k_s, f"{c}.k_t": v.k_t,
                        f"{c}.c_s": v.c_s})
-    record = ["road.road_height", "road.road_height_rear"] + [f"{c}.{x}" for c in CORNERS
+    record = ["road.road_height", "road.road_height_rear", "road.distance"] + [f"{c}.{x}" for c in CORNERS
                                                               for x in ("road_height_est", "sprung_mass_est")]
     system = System(components=comps, connections=conns, order=["road", "car", "front", "rear"])
     with CoSimulation(system, parameters=params, inputs={"vehicle_speed": speed}, record=record) as sim:
@@ -215,7 +217,7 @@ def fmu_check(p: HalfCarParams, cls: int, speed: float, duration: float, seed: i
     t = r["time"][1:]
     roads = {"front": r["road.road_height"][1:], "rear": r["road.road_height_rear"][1:]}
     return {c: scores(t, r[f"{c}.road_height_est"][1:], r[f"{c}.sprung_mass_est"][1:], roads[c],
-                      corner_load(p, c)) for c in CORNERS}
+                      corner_load(p, c), r["road.distance"][1:]) for c in CORNERS}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -252,7 +254,7 @@ def main(argv: list[str] | None = None) -> int:
         for c in CORNERS:
             v = corner_vehicle(p, c)
             meas, road = core[c]
-            hp, m = scores(core["t"], *estimate(meas, v, speed), road, v.m_s)
+            hp, m = scores(core["t"], *estimate(meas, v, speed), road, v.m_s, speed * core["t"])
             print(f"  {c}: cores {hp:.6f} {m:+.6f}   FMUs {fmu[c][0]:.6f} {fmu[c][1]:+.6f}")
     if a.apparent_mass:
         f = np.array([0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 3.0, 5.0, 10.0])

@@ -8,21 +8,20 @@ Plant (benchmarks/robust_cores.py's ``drive``): "exact", plant.QuarterCar with t
 nominal vehicle; "air spring", plant.NonlinearQuarterCar with the contract's air spring and
 asymmetric damper (QuarterCar spring_model = damper_model = 1), the estimator told its
 linearisation. ISO 8608 road seed s, sensor noise seed 1000 + s, the car at rest on the road at
-t = 0, 1 ms steps. Prints one markdown row per cell, means over the seeds, scored after the 10 s warm-up:
+t = 0, 1 ms steps. Prints one markdown row per cell, means over the seeds, scored after the 10 s
+warm-up by harness.metrics.road_scores (road_height_est, the profile, against
+metrics.reference_profile of the road):
 
-- HP error % (harness.metrics.road_scores: against the road, both high-passed at 0.5 Hz) of the
-  causal default, of the causal estimate plus ``reference_correction`` of its own body and road
-  heights (causal: the part of the gain that is not the smoother's), and of the smoothed
-  estimate; the reduction causal -> smoothed;
-- the same against reference_road (what road_height_est estimates) high-passed alike, over the
-  same road's HP std: the error in the output band without the floor below;
-- the 2-sigma coverage of the smoothed road_height_std against reference_road (mean, and the
-  lowest and highest seed) and of the causal one; the raw rms error (mm, against reference_road);
-- the floor: the HP error % of reference_road itself against the road (its high-pass's phase
-  lead; no estimator of reference_road scores below it).
+- HP error % (both high-passed at 0.5 Hz) of the causal default, of the causal estimate plus
+  ``reference_correction`` of its own body and road heights made a profile as smooth_default makes
+  its own (``profile_of``; causal: the part of the gain that is not the smoother's), and of the
+  smoothed estimate; the reduction causal -> smoothed;
+- the 2-sigma coverage of the smoothed road_height_std (mean, and the lowest and highest seed) and
+  of the causal one; the raw rms error (mm) of both.
 
-``--steady``: instead, the steady-state HP error % of the smoothed output (frequency domain, exact
-vehicle, no simulation) with three choices of the model above the blend (``steady``).
+``--steady``: instead, the steady-state HP error % of the smoothed output against the true profile
+(frequency domain, exact vehicle, no simulation) with three choices of the model above the blend
+(``steady``).
 """
 from __future__ import annotations
 
@@ -38,8 +37,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from robust_cores import H, WARMUP, drive  # noqa: E402
 
-from suspension_estimation.harness.metrics import highpass, reference_road, road_scores  # noqa: E402
-from suspension_estimation.harness.smoothing import reference_correction, smooth_default  # noqa: E402
+from suspension_estimation.harness.metrics import road_scores  # noqa: E402
+from suspension_estimation.estimators.suspension import EstimatorConfig  # noqa: E402
+from suspension_estimation.harness.smoothing import profile_of, reference_correction, smooth_default  # noqa: E402
 
 PLANTS = {"exact": "exact", "air spring": "nonlinear"}  # our names -> robust_cores' cases
 
@@ -48,29 +48,29 @@ def one(plant: str, cls: int, kmh: float, duration: float, seed: int) -> dict:
     t, meas, zr, told = drive(PLANTS[plant], cls, kmh / 3.6, duration, seed)
     params = {"m_s_nominal": told.m_s, "m_u": told.m_u, "k_s": told.k_s, "k_t": told.k_t, "c_s": told.c_s}
     out = smooth_default(meas[:, 0], meas[:, 1], meas[:, 2], kmh / 3.6, params, H)
-    c = road_scores(t, out["causal_road_height_est"], zr, out["causal_road_height_std"], warmup=WARMUP)
-    s = road_scores(t, out["road_height_est"], zr, out["road_height_std"], warmup=WARMUP)
-    ref = reference_road(t, zr)
-    corrected = out["causal_road_height_est"] + reference_correction(out["causal_z_s_est"], out["causal_road_height_est"], H)
-    late = t >= WARMUP
-    hp_ref, hp_road = highpass(ref, H)[late], highpass(zr, H)[late]
-
-    def in_band(est):  # HP error % against reference_road instead of the road
-        return float(100 * np.std(highpass(est, H)[late] - hp_ref) / np.std(hp_road))
-
-    return {"causal": c["err_std_hp_pct"], "corrected": road_scores(t, corrected, zr, warmup=WARMUP)["err_std_hp_pct"],
-            "smoothed": s["err_std_hp_pct"], "ref_causal": in_band(out["causal_road_height_est"]),
-            "ref_corrected": in_band(corrected), "ref_smoothed": in_band(out["road_height_est"]),
-            "cov": s["coverage_2sigma"], "cov_c": c["coverage_2sigma"], "raw_c": c["rmse_raw_mm"],
-            "raw_s": s["rmse_raw_mm"], "floor": road_scores(t, ref, zr, warmup=WARMUP)["err_std_hp_pct"]}
+    d = kmh / 3.6 * t  # m travelled at each sample
+    c = road_scores(t, out["causal_road_height_est"], zr, out["causal_road_height_std"], warmup=WARMUP, distance=d)
+    s = road_scores(t, out["road_height_est"], zr, out["road_height_std"], warmup=WARMUP, distance=d)
+    cfg = EstimatorConfig(**params)
+    rm = cfg.tuning.road_model
+    fix = reference_correction(out["causal_z_s_est"], out["causal_road_height_est"], H, rm)
+    corrected = out["causal_road_height_est"] + profile_of(fix, np.full(len(t), kmh / 3.6), H, cfg.profile_cutoff,
+                                                           cfg.tuning.standstill_speed, (rm.f_ref, rm.zeta_ref))
+    return {"causal": c["err_std_hp_pct"],
+            "corrected": road_scores(t, corrected, zr, warmup=WARMUP, distance=d)["err_std_hp_pct"],
+            "smoothed": s["err_std_hp_pct"], "cov": s["coverage_2sigma"], "cov_c": c["coverage_2sigma"],
+            "raw_c": c["rmse_raw_mm"], "raw_s": s["rmse_raw_mm"]}
 
 
-def steady(cls: int, kmh: float) -> list[tuple[float, float]]:
-    """Steady-state HP error % (against the road, against reference_road) of the smoothed output
-    on the exact vehicle (harness.smoothing._through: plant, both smoothers, blend, correction; no
-    lag term) with the model above the 1 Hz blend (a) the estimator's force-error model, (b) the
-    same with the road held over the step, (c) held and with the road intensity of the class
-    (smooth_default's); below the blend the anchor's model, Q of class F."""
+def steady(cls: int, kmh: float) -> list[float]:
+    """Steady-state HP error % of the smoothed output against the true profile on the exact vehicle:
+    the road through harness.smoothing._through (plant, both smoothers, blend, correction; no lag
+    term), then made a profile as smooth_default makes road_height_est (the reference taken off,
+    1 / reference_highpass, and the high-pass in distance, plant.profile_band.band_response at
+    f / v), against that high-pass of the road, over the HP true profile's std; with the model
+    above the 1 Hz blend (a) the estimator's force-error model, (b) the same with the road held over
+    the step, (c) held and with the road intensity of the class (smooth_default's); below the blend
+    the anchor's model, Q of class F."""
     from scipy.signal import butter, sosfreqz
 
     from suspension_estimation.estimators.model import DiscreteModel, ModelNoise, measurement_covariance
@@ -78,6 +78,7 @@ def steady(cls: int, kmh: float) -> list[tuple[float, float]]:
     from suspension_estimation.estimators.tuning import TUNING
     from suspension_estimation.harness.smoothing import _fixed, _through
     from suspension_estimation.plant import iso8608
+    from suspension_estimation.plant.profile_band import band_response
     from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE
 
     v, R, rm = kmh / 3.6, measurement_covariance(0.02, 0.2, 1e-4), TUNING.road_model
@@ -90,13 +91,14 @@ def steady(cls: int, kmh: float) -> list[tuple[float, float]]:
     f = np.geomspace(1e-3, 0.999 / (2 * H), 8000)
     Sr = iso_psd_time(f, iso8608.class_psd_n0(cls), v)
     w = np.abs(sosfreqz(butter(4, 0.5, btype="highpass", fs=1 / H, output="sos"), worN=f, fs=1 / H)[1]) ** 4
+    band = band_response(f / v)  # the profile's high-pass in distance, in time at v
+    made = band / reference_highpass(f, rm.f_ref, rm.zeta_ref)  # smoothed road -> road_height_est
     lo, out = fixed(6), []
     for hi in (fixed(6, fe), fixed(6, fe, True), fixed(cls, fe, True)):
         o, T = _through(hi, lo, f, H, TUNING.blend_hz, rm, 0)
-        noise = (np.abs(o) ** 2 * (2 * H * np.diag(R))).sum(axis=1)
-        out.append(tuple(float(100 * np.sqrt(np.trapezoid(w * (np.abs(T - truth) ** 2 * Sr + noise), f)
-                                             / np.trapezoid(w * Sr, f)))
-                         for truth in (1.0, reference_highpass(f, rm.f_ref, rm.zeta_ref))))
+        noise = (np.abs(o) ** 2 * (2 * H * np.diag(R))).sum(axis=1) * np.abs(made) ** 2
+        err = np.abs(made * T - band) ** 2 * Sr + noise
+        out.append(float(100 * np.sqrt(np.trapezoid(w * err, f) / np.trapezoid(w * np.abs(band) ** 2 * Sr, f))))
     return out
 
 
@@ -113,12 +115,12 @@ def main(argv: list[str] | None = None) -> int:
                     "the blend instead (exact vehicle, no simulation)")
     a = ap.parse_args(argv)
     if a.steady:
-        print("| ISO | km/h | HP % against the road / reference_road: (a) the estimator's force-error model | "
+        print("| ISO | km/h | HP % against the true profile: (a) the estimator's force-error model | "
               "(b) road held | (c) held, Q of the class |\n|---|---|---|---|---|")
         for c in a.classes.split(","):
             for v in a.speeds.split(","):
                 r = steady("ABCDEFGH".index(c.strip().upper()) + 1, float(v))
-                print(f"| {c.strip().upper()} | {v} | " + " | ".join(f"{x:.2f} / {y:.2f}" for x, y in r) + " |")
+                print(f"| {c.strip().upper()} | {v} | " + " | ".join(f"{x:.2f}" for x in r) + " |")
         return 0
     plants = [p.strip() for p in a.plants.split(",")]
     if any(p not in PLANTS for p in plants) or a.duration <= WARMUP or a.seeds < 1 or a.workers < 1:
@@ -131,18 +133,16 @@ def main(argv: list[str] | None = None) -> int:
     jobs = [(p, c, v, a.duration, s) for p, c, v in cells for s in seeds]
     with ProcessPoolExecutor(a.workers) as pool:
         results = list(pool.map(one, *zip(*jobs)))
-    print("| ISO | km/h | plant | HP %: causal / + correction / smoothed | reduction % | "
-          "HP % against reference_road: causal / + correction / smoothed | coverage smoothed (seeds) | "
-          "coverage causal | raw rms mm causal / smoothed | floor HP % |\n|---|---|---|---|---|---|---|---|---|---|")
+    print("| ISO | km/h | plant | HP %: causal / + correction / smoothed | reduction % | coverage smoothed (seeds) | "
+          "coverage causal | raw rms mm causal / smoothed |\n|---|---|---|---|---|---|---|---|")
     for i, (p, c, v) in enumerate(cells):
         r = results[i * a.seeds:(i + 1) * a.seeds]
         m = {k: float(np.mean([x[k] for x in r])) for k in r[0]}
         cov = [x["cov"] for x in r]
         print(f"| {'ABCDEFGH'[c - 1]} | {v:g} | {p} | {m['causal']:.2f} / {m['corrected']:.2f} / {m['smoothed']:.2f} | "
               f"{100 * (1 - m['smoothed'] / m['causal']):.1f} | "
-              f"{m['ref_causal']:.2f} / {m['ref_corrected']:.2f} / {m['ref_smoothed']:.2f} | "
               f"{m['cov']:.3f} ({min(cov):.3f}-{max(cov):.3f}) | {m['cov_c']:.3f} | "
-              f"{m['raw_c']:.1f} / {m['raw_s']:.1f} | {m['floor']:.2f} |", flush=True)
+              f"{m['raw_c']:.2f} / {m['raw_s']:.2f} |", flush=True)
     return 0
 
 

@@ -5,8 +5,7 @@
 - ``mass``: forgetting-factor RLS sprung-mass estimation on a mass-independent regressor
 - ``road_class``: online ISO 8608 class from the PSD of the estimated road
 - ``response_class``: ISO 8608 class from the measured response (streaming linear SVM, plain-data model)
-- ``start_offset``: the road height the car started on, from the road estimate (``start_offset``
-  True only: the absolute level of a zero-mean ISO road)
+- ``road_profile``: the road estimate freed of the filter's common-mode reference (road_height_est)
 - ``steady_state``: the filter's steady-state error on an ISO road, in the frequency domain, and its
   low-frequency lag behind the common-mode reference (``reference_lag``)
 - ``suspension``: ``SuspensionEstimator``, the object the FMU adapter drives

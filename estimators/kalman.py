@@ -84,51 +84,6 @@ def stationary_covariance(F: np.ndarray, Q: np.ndarray, H: np.ndarray, R: np.nda
     return np.ascontiguousarray(Pp), np.ascontiguousarray(P)
 
 
-def error_buildup(F: np.ndarray, H: np.ndarray, K: np.ndarray, Q: np.ndarray, R: np.ndarray,
-                  P: np.ndarray, i: int, m: int, n_max: int, tol: float = 1e-9) -> np.ndarray:
-    """Deficit of the error variance of state ``i`` of a filter with the constant gain K that
-    starts with no error, as a fraction of its stationary posterior variance P_ii, every m steps.
-
-    With x <- F x; x <- x + K (z - H x) the posterior error obeys e_k = A e_{k-1} + (noise),
-    A = (I - K H) F, and its covariance S_k = A S_{k-1} A' + W, W = (I - K H) Q (I - K H)' +
-    K R K', from S_0 = 0. S_k is summed forwards (S_(j+1)m = A^m S_jm A'^m + S_m), a sum of
-    positive semi-definite terms whose diagonal never falls to zero by cancellation: the
-    closed form P - A^k P A'^k, which it equals in exact arithmetic, loses everything to
-    rounding when P is ill-conditioned (a 1 kg wheel on a 1e8 N/m tyre read to 0.1 um: the
-    deficit rounded to 1 and the variance to exactly 0). Returns d_j = 1 - [S_jm]_ii / P_ii for
-    j = 0, 1, ..., at most n_max + 1 values (d_0 = 1), each clipped to [0, 1], stopping once
-    d_j < tol or d stops falling (by 1e-12 a table step); the variance after k steps is P_ii (1 - d(k / m)). Dimensionless."""
-    n = F.shape[0]
-    I_KH = np.eye(n) - K @ H
-    A = I_KH @ F
-    W = I_KH @ Q @ I_KH.T + K @ R @ K.T
-    p = float(P[i, i])
-    out = [1.0]
-    if not p > 0:
-        return np.array(out)
-    # S_m and B = A^m by binary powers: S_(a+b) = A^b S_a A'^b + S_b, O(log m) products
-    B, S_m = np.eye(n), np.zeros((n, n))
-    P2, S2 = A, W  # A^(2^j) and S_(2^j)
-    k = int(m)
-    while k:
-        if k & 1:
-            B, S_m = P2 @ B, P2 @ S_m @ P2.T + S2
-        k >>= 1
-        if k:
-            P2, S2 = P2 @ P2, P2 @ S2 @ P2.T + S2
-    X = np.zeros((n, n))
-    for _ in range(int(n_max)):
-        X = B @ X @ B.T + S_m
-        d = 1.0 - float(X[i, i]) / p
-        if not np.isfinite(d):
-            break
-        if d < tol or out[-1] - d <= 1e-12:  # built up, or to rounding (P and the sum's limit
-            out.append(min(max(d, 0.0), 1.0))  # differ by the fixed point's own error, ~1e-7)
-            break
-        out.append(min(max(d, 0.0), 1.0))
-    return np.array(out)
-
-
 class LinearKF:
     """x_k = F x_{k-1} + w (cov Q),  z_k = H x_k + v (cov R); paper 000 eqs. 10-14.
 

@@ -1,4 +1,4 @@
-"""The road filter's road estimate freed of its common-mode reference, the input of road_profile_est.
+"""The road filter's road estimate freed of its common-mode reference, the input of road_height_est.
 
 The road filters of the KF family (codes 0-2) pin the car's absolute height with a weak
 reference: the common mode of body, wheel and road passes the high-pass

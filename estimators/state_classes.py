@@ -15,20 +15,18 @@ from .imm_filter import IMMRoad, MovingIMMRoad
 from .kalman import MMEKF, LinearKF
 from .mass import ForgettingRLS, MassEstimator, StateVariableFilter
 from .model import DiscreteModel, ModelNoise, RoadModel
-from .profile_check import LongWaveCheck
 from .response_class import ResponseClassifier
 from .road_class import RoadClassifier
 from .road_profile import Unreference
 from .standstill_bias import StandstillBias
-from .start_offset import StartOffset
 from .suspension import Blend, EstimatorConfig, SuspensionEstimator
 from .tuning import Tuning
 from .vb_akf import VBAKF, VBRoadFilter
 
 STATE_CLASSES: tuple[type, ...] = (
-    SuspensionEstimator, EstimatorConfig, Tuning, Blend, StartOffset, LinearKF, MMEKF, DiscreteModel, ModelNoise,
+    SuspensionEstimator, EstimatorConfig, Tuning, Blend, LinearKF, MMEKF, DiscreteModel, ModelNoise,
     RoadModel, MassEstimator, ForgettingRLS, StateVariableFilter, RoadClassifier, ResponseClassifier,
     IMM, MassIMM, MovingMassIMM, IMMRoad, MovingIMMRoad, VBAKF, VBRoadFilter, NonlinearModel, EKF, UKF,
     FilterpyUKF, _FilterpyEKF, DualObserver, NonlinearRoadFilter, UKFRoadFilter, DualObserverFilter,
     Vehicle, IRIMeter, AirSpring, PiecewiseDamper, BumpStops, SensorErrors, DelayLine,
-    DistanceHighpass, LongWaveCheck, StandstillBias, Unreference)
+    DistanceHighpass, StandstillBias, Unreference)

@@ -75,8 +75,8 @@ def filter_transfer(Phi, H, K, zinv, rows) -> np.ndarray:
 
 def reference_highpass(f: np.ndarray, f_ref: float, zeta_ref: float) -> np.ndarray:
     """The common-mode reference's high-pass s^2 / (s^2 + 2 zeta w s + w^2), s = 2 pi i f (Hz),
-    w = 2 pi f_ref (model.reference_step_response is its step response): the transfer from the
-    road to what ``road_height_est`` estimates (harness.metrics.reference_road). 1 for f_ref 0."""
+    w = 2 pi f_ref: the transfer from the
+    road to the filter's road estimate (road_profile.Unreference takes it off). 1 for f_ref 0."""
     s = 2j * np.pi * np.asarray(f, float)
     w = 2 * np.pi * f_ref
     return s * s / (s * s + 2 * zeta_ref * w * s + w * w) if f_ref > 0 else np.ones_like(s)
@@ -129,8 +129,8 @@ def road_error_variance(Phi, H, K, h: float, gd_n0: float, speed: float, vehicle
     Nyquist). T is the road -> estimate transfer through the plant (``vehicle``, accelerations
     sampled per ``acc_sampling``) and the filter (state ``row``); the measurement channels are
     the first K.shape[1] of [a_s, a_u, z_s - z_u]. ``reference`` (f_ref Hz, zeta_ref, q 1/s):
-    the error against the reference's high-pass of the road (the truth of
-    harness.metrics.reference_road) of the estimate corrected by q int x dt (``reference_lag``),
+    the error against the reference's high-pass of the road of the estimate corrected by
+    q int x dt (``reference_lag``),
     |T (1 + q / s) - HP|^2, instead of |T - 1|^2 against the road itself."""
     v = max(abs(float(speed)), 0.1)
     f_lo, f_hi = iso8608.N_MIN * v, min(iso8608.N_MAX * v, 0.999 / (2 * h))
@@ -184,7 +184,7 @@ def band_error_variance(Phi, H, K, R, h: float, gd_n0: float, speed: float, cuto
     frequencies from a twentieth of the band's corner. T and F_i as in ``road_error_variance``;
     T_r the reference's high-pass (``reference_highpass`` of ``reference`` = (f_ref, zeta_ref))
     that road_profile.Unreference takes off the estimate, 1 without. This is the error of
-    ``road_profile_est`` when the vehicle is the model's."""
+    ``road_height_est`` when the vehicle is the model's."""
     v = max(abs(float(speed)), 0.1)
     f = np.geomspace(0.05 * v / cutoff, 0.999 / (2 * h), nf)
     T, F = _road_and_noise_transfers(Phi, H, K, h, f, vehicle, acc_sampling, row)

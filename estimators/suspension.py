@@ -18,7 +18,7 @@ Road estimators (contract ``road_estimator``): 0 the KF of the exact linear mode
   force-error filter's common velocity is pulled towards the anchor's (``align_hz``);
 * after an update without every channel the output is the anchor's and fades back over
   ``anchor_hold`` s (the force-error filter needs all three channels), and both filters
-  restart at their fixed points when it ends. ``road_height_std`` is the anchor's;
+  restart at their fixed points when it ends. ``road_height_std`` follows the anchor's P;
 * the anchor restarts from the force-error filter's state when the two disagree by more than
   ``anchor_gate`` times the force-error filter's own std (road height or body velocity): its
   linear spring and damper are then wrong at low frequency (a nonlinear suspension). Not in the
@@ -28,6 +28,14 @@ Road estimators (contract ``road_estimator``): 0 the KF of the exact linear mode
 The FMU adapter calls ``SuspensionEstimator(config).step(acc_sprung, acc_unsprung, deflection,
 speed, h)`` once per doStep; it returns a dict keyed by the contract's output names. The
 estimate refers to the instant of the measurement passed in (filtered estimate x_{k|k}).
+
+The road output. ``road_height_est`` is the road profile as inertial profilers report it: the
+filter's road, freed of its common-mode reference (road_profile.Unreference), high-passed in
+distance at ``profile_cutoff`` (plant.profile_band, third order), fed while the car moves
+(``_profile``); harness.metrics.reference_profile gives it from a true profile.
+``road_height_std`` is the filter's P scaled to the steady-state error in that band with the
+allowance for the sensors' calibration (``_band_ratio``). The states z_s_est, z_u_est stay
+relative to the reference, with the filter's low-frequency lag added back (``_lag_rate``).
 
 Mass feedback. The road filter is rebuilt at ``MassEstimator.mass_slow`` (least squares over
 all data since the last detected payload change) when it differs from the model mass by more
@@ -70,25 +78,22 @@ from ..plant.vehicle import Vehicle, VEHICLE_RANGES, check_range
 from .airspring_observers import config_problems
 from .imm_filter import imm_problems
 from .interface import RoadFilter, code_problems, composed_factory, preload, state_list
-from .kalman import LinearKF, MMEKF, error_buildup
+from .kalman import LinearKF, MMEKF
 from .mass import MassEstimator
 from .model import (IVR, IVS, IVU, IZR, IZS, IZU, N_STATES, N_STATES_AVG, DiscreteModel,
-                    held_input_matrix, iso_road_height_std, measurement_covariance,
-                    reference_step_response)
-from .profile_check import EXCESS, LongWaveCheck
+                    held_input_matrix, measurement_covariance)
 from .road_class import RoadClassifier
 from .road_profile import Unreference
 from .standstill_bias import LEARNED, StandstillBias
-from .start_offset import StartOffset
-from .steady_state import band_calibration_sensitivity, band_error_variance, raw_error_variance, reference_lag
+from .steady_state import band_calibration_sensitivity, band_error_variance, reference_lag
 from .tuning import TUNING, TUNING_FIELDS, Tuning
 from .vb_akf import vb_problems
 
 OUTPUTS = ("road_height_est", "road_velocity_est", "road_height_std", "z_s_est", "v_s_est",
            "z_u_est", "v_u_est", "susp_deflection_est", "tire_deflection_est", "sprung_mass_est", "mass_std",
-           "road_class_est", "nis", "status", "iri_est", "road_profile_est", "road_profile_std")
+           "road_class_est", "nis", "status", "iri_est")
 
-STATUS_OK, STATUS_REJECTED, STATUS_REINIT, STATUS_LONG_WAVE = 0, 1, 2, 3
+STATUS_OK, STATUS_REJECTED, STATUS_REINIT = 0, 1, 2
 # the car's motion, from the speed each step (Tuning.standstill_speed): standing, the mass
 # regression is not fed and the road profile holds
 MOVING, STANDING = "moving", "standing"
@@ -129,7 +134,6 @@ ALIGN_AFTER_FAULT = 2.0
 START_DISAGREE_SPAN = 4.0
 START_DISAGREE_DROP = 0.5  # s
 START_FADE = 0.25  # s, the output's move to and from the force-error filter alone at the start
-START_TERM_SPAN = 400.0  # s after a (re)start beyond which the start height is left out (g ~ 1e-8)
 
 
 def _apply(kf: LinearKF, z: np.ndarray, rows) -> None:
@@ -214,7 +218,7 @@ class EstimatorConfig:
     damper_c_rebound_high: float = DEFAULT_DAMPER.damper_c_rebound_high  # N.s/m
     damper_c_compression_high: float = DEFAULT_DAMPER.damper_c_compression_high  # N.s/m
     iri_segment: float = 100.0  # m, segments of the IRI of the road estimate (plant/iri.py)
-    # m, long-wavelength cut-off of road_profile_est, the profile high-passed in distance
+    # m, long-wavelength cut-off of road_height_est, the profile high-passed in distance
     # (plant/profile_band.py)
     profile_cutoff: float = PROFILE_CUTOFF
     # road_estimator 4 (VB-AKF, vb_akf.VBRoadFilter): fixed-point iterations per step, forgetting
@@ -238,7 +242,7 @@ class EstimatorConfig:
     acc_sprung_delay: float = 0.0  # s
     acc_unsprung_delay: float = 0.0  # s
     deflection_delay: float = 0.0  # s
-    # what road_profile_std allows for the calibration errors it is not told (1-sigma): each
+    # what road_height_std allows for the calibration errors it is not told (1-sigma): each
     # accelerometer's gain error (relative) and each channel's delay (s); 0 = calibrated sensors
     calibration_gain_std: float = CALIBRATION_ALLOWANCE["calibration_gain_std"][0]
     calibration_delay_std: float = CALIBRATION_ALLOWANCE["calibration_delay_std"][0]
@@ -373,7 +377,7 @@ class SuspensionEstimator:
                                 and self.mass_est.estimate_damping)
         self.classifier = RoadClassifier(gain=cfg.tuning.class_gain)
         self.iri = IRIMeter(cfg.iri_segment, start=0.0)  # raises a ValueError naming iri_segment
-        # road_profile_est: the road estimate's increments while moving, high-passed in distance
+        # road_height_est: the road estimate's increments while moving, high-passed in distance
         self.motion = STANDING
         self._band = DistanceHighpass(cfg.profile_cutoff)
         self._profile_u = 0.0  # m, the sum of the road estimate's increments while moving
@@ -382,11 +386,13 @@ class SuspensionEstimator:
         rm = cfg.tuning.road_model
         self._reference = (rm.f_ref, rm.zeta_ref) if self.composed is None and rm.f_ref > 0 else None
         self.unreference = Unreference(*(self._reference or (0.0, 0.0)))
+        # the same for the gap between the start's two filters (_start_output)
+        self._gap_unreference = Unreference(*(self._reference or (0.0, 0.0)))
+        self._gap_band = DistanceHighpass(cfg.profile_cutoff)
+        self._gap_u = 0.0
         self._band_cache: tuple | None = None  # (model, class, ratio): see _band_ratio
-        self.long_wave = LongWaveCheck(cfg.profile_cutoff)
         self.model: DiscreteModel | None = None
         self._model_key: tuple | None = None
-        self._class_height_std: dict[int, float] = {}  # m, ISO road-height std per class
         self.m_model = float(cfg.m_s_nominal)
         self.c_model = float(cfg.c_s)  # damping of the anchor filter's model (identified)
         self.time = 0.0
@@ -411,11 +417,7 @@ class SuspensionEstimator:
         self.refilters = 0
         self.model_builds = 0  # discretisations of the road filter's model (each costs ~1-3 ms)
         self.mass_rebuilds = 0  # changes of the model mass by the mass feedback
-        # deficit of the error variance of a start from rest (see road_height_std): made at the
-        # first model, None when the estimate has not (re)started from rest
-        self._buildup: tuple[float, np.ndarray] | None = None
-        self._honest: tuple | None = None  # (model, class, key, ratio, q): see _honest_ratio
-        self._ref_q = 0.0  # 1/s, the filter's lag behind the reference (steady_state.reference_lag)
+        self._lag: tuple | None = None  # (model, q): see _lag_rate
         self.reset_state(from_rest=True)
 
     # --- state -----------------------------------------------------------------------------
@@ -437,10 +439,6 @@ class SuspensionEstimator:
             a.unfreeze()
             if self.anchor_model is None or not a.stationary():
                 a.P = np.diag(([1e-4, 1e-4, 1e-4, 1e-4, 1e-2, 1e-1] + [1e-4] * n)[:na]) ** 2
-        self._t_reset = self.time  # the estimate restarts from zero: see road_height_std
-        self._from_rest = bool(from_rest)
-        self._buildup = None
-        self._offset: StartOffset | None = None  # estimate of z_0, made at the first output
         self._x_int = 0.0  # m, integral of q x since the (re)start (steady_state.reference_lag)
         kf.P_post = None
         kf.unfreeze()
@@ -453,69 +451,21 @@ class SuspensionEstimator:
         # before the first model the filter is due to start at that model's fixed point
         self._snap(stationary=self.model is None or kf.stationary_now)
 
-    def _honest_ratio(self) -> float:
-        """Real steady-state raw road-error variance of the filter on an ISO road of the
-        assumed class (steady_state.raw_error_variance: sensor noise exactly, the road over
-        the ISO band) over its own P[z_r, z_r], which is larger because it also carries the
-        model noise and the road intensity of class max(class, q_class_min) that Q is set from
-        (default vehicle, 40 km/h: 5.7 / 5.8 / 6.0 mm on ISO B / C / D against 6.8 mm). Assumes
-        the vehicle is the model's and the sensors as configured. Recomputed (about 1.5 ms)
-        when the class, the step or the speed (by 5 %) changes; 1 for MME&KF (not this
-        filter form) or without a fixed point."""
+    def _lag_rate(self) -> float:
+        """Rate q (1/s) by which the active filter's road misses the common-mode reference below
+        its band (steady_state.reference_lag), for z_s_est and z_u_est; recomputed (about 1 ms)
+        when the model changes; 0 for MME&KF (not this filter form) or without a fixed point."""
         kf, m = (self.anchor, self.anchor_model) if self.anchor_trusted else (self.kf, self.model)
-        cls = self.assumed_class
-        hon = self._honest
-        if hon is not None and hon[0] is m and hon[1] == cls:  # the per-step path
-            return hon[3]
-        sol = kf.stationary_solution
-        if m is None:
-            return 1.0
-        if isinstance(kf, MMEKF) or sol is None:
-            self._honest = (m, cls, None, 1.0, 0.0)
-            self._ref_q = 0.0
-            return 1.0
-        key = (cls, round(math.log(max(m.speed, 0.1)) / math.log(1.05)), m.h)
-        if hon is None or hon[2] != key:
-            K, P = sol
-            veh = m.vehicle  # the model's own, with the identified damping for the anchor
+        hit = self._lag
+        if hit is not None and hit[0] is m:
+            return hit[1]
+        sol = None if m is None else kf.stationary_solution
+        q = 0.0
+        if sol is not None and not isinstance(kf, MMEKF):
             rm = self.cfg.tuning.road_model
-            q, ref = 0.0, None
-            if not self.cfg.tuning.start_offset:  # against the reference's truth (see start_offset)
-                q = reference_lag(m.Phi, m.H, K, m.h, rm.f_ref, rm.zeta_ref, veh, self.acc_sampling, IZR)
-                ref = (rm.f_ref, rm.zeta_ref, q)
-            var = raw_error_variance(m.Phi, m.H, K, self.R, m.h, iso8608.class_psd_n0(cls), m.speed,
-                                     veh, self.acc_sampling, IZR, reference=ref)
-            ratio = _checked_ratio(var, P)
-        else:
-            ratio, q = hon[3], hon[4]
-        self._honest = (m, cls, key, ratio, q)
-        self._ref_q = q
-        return ratio
-
-    def _deficit(self, t: float, h: float) -> float:
-        """Fraction of the stationary road-height error variance not yet built up t s after a
-        start from rest (kalman.error_buildup, every 0.05 s, interpolated linearly). A car at
-        rest has known relative states: the error the stationary P describes grows from zero
-        over the reference's time scale (rms 3-4 mm at 10-20 s against 6-7 mm settled). Only
-        for the KF (0 for MME&KF, whose frozen step is not (I - K H) F) and while the filter
-        has a fixed point; the table is made once, at the first model, and kept through
-        rebuilds (their stationary P is close)."""
-        if self._buildup is None:
-            kf = self.anchor if self.anchor_trusted else self.kf
-            if isinstance(kf, MMEKF) or kf.stationary_solution is None:
-                self._from_rest = False
-                return 0.0
-            K, P = kf.stationary_solution
-            m = max(1, round(0.05 / h))
-            dt = m * h
-            self._buildup = (dt, error_buildup(kf.F, kf.H, K, kf.Q, kf.R, P, IZR, m, int(400.0 / dt)))
-        dt, d = self._buildup
-        u = t / dt
-        j = int(u)
-        if j + 1 >= len(d):
-            self._from_rest = False  # built up: no more work per step
-            return 0.0
-        return float(d[j] + (u - j) * (d[j + 1] - d[j]))
+            q = reference_lag(m.Phi, m.H, sol[0], m.h, rm.f_ref, rm.zeta_ref, m.vehicle, self.acc_sampling, IZR)
+        self._lag = (m, q)
+        return q
 
     def _snap(self, stationary: bool | None = None) -> None:
         kf, a = self.kf, self.anchor
@@ -706,7 +656,6 @@ class SuspensionEstimator:
                 n = a.dim_x
                 a.restore(kf.x[:n].copy(), kf.P[:n, :n].copy(), False)
                 a.P_post = None
-                self._from_rest = False  # the error is no longer that of a start from rest
                 self._blend.reset()
                 self.anchor_resets += 1
                 recent = self._reset_times
@@ -730,36 +679,35 @@ class SuspensionEstimator:
         self.anchor_trusted = False
         self._nonlinear = True
         self._hold_left = 0.0
-        # its error is not that of the anchor's start from rest (_deficit), nor built up like it
-        self._from_rest = False
         self._start_kf = None  # the start is re-filtered without the anchor (_refilter_start)
 
-    def _start_output(self, x: list, h: float) -> float:
+    def _start_output(self, x: list, h: float) -> tuple[float, float]:
         """While the anchor disagrees with the force-error filter at the start (_blend_step), the
         output (``x``, changed in place) moves over START_FADE s to the force-error filter run
         without the pull towards the anchor (``_start_kf``), and back when they agree: which of
-        the two is right is not known until the damping is identified. Returns the variance (m^2)
-        to add to road_height_std: the share of their road gap the output may be off by."""
+        the two is right is not known until the damping is identified. Returns (share, gap): the
+        share of their road gap (m) the output may be off by, which road_height_std takes in the
+        profile's band."""
         if self.time - self._last_partial <= ALIGN_AFTER_FAULT:
             # a sensor fault: the anchor carries the output (_after_update), and the filter
             # without the pull, which needs every channel as much as the force-error filter, is
             # of no further use
             self._start_kf, self._start_w = None, 0.0
-            return 0.0
+            return 0.0, 0.0
         sk = self._start_kf
         target = 1.0 if self.time <= self._start_gap_until else 0.0
         w = self._start_w
         w = min(w + h / START_FADE, target) if target > w else max(w - h / START_FADE, target)
         self._start_w = w
+        xs = sk.x.tolist()
+        gap = x[IZR] - xs[IZR]
         if w == 0.0:
             if self.time >= START_DISAGREE_SPAN:
                 self._start_kf = None  # the start is over
-            return 0.0
-        xs = sk.x.tolist()
-        gap = x[IZR] - xs[IZR]
+            return 0.0, gap
         for i in range(N_STATES):
             x[i] = w * xs[i] + (1.0 - w) * x[i]
-        return (max(w, 1.0 - w) * gap) ** 2
+        return max(w, 1.0 - w), gap
 
     def _episode_closed(self) -> bool:
         return (self._confirmed_for >= self.cfg.tuning.refilter_confirm
@@ -987,63 +935,22 @@ class SuspensionEstimator:
             if w > 0.0:  # the anchor hold (_after_update)
                 xa = self.anchor.x.tolist()
                 x = [w * xa[i] + (1.0 - w) * x[i] for i in range(N_STATES)]
-        start_var = 0.0 if self._start_kf is None else self._start_output(x, h)
+        start_var = 0.0
+        if self._start_kf is not None:
+            # the share of the two filters' road gap the output may be off by, in the profile's band
+            share, gap = self._start_output(x, h)
+            moving = self.motion == MOVING
+            du = self._gap_unreference.step(gap, h)
+            self._gap_u += du if moving else 0.0
+            start_var = (share * self._gap_band.step(abs(speed) * h if moving else 0.0, self._gap_u)) ** 2
         if status != STATUS_REINIT:
             self.classifier.update(self.distance, x[IZR], speed)
         out = self.outputs
-        # P is the error relative to the common-mode reference; the unknown road height the car
-        # started on (or stood on at a re-initialisation), z_0, adds -z_0 g(t) to the raw error
-        # (model.start_level_std), z_0 ~ the road-height std of the assumed class. The KF
-        # estimates z_0 from its own road estimate (start_offset.py) and adds g(t) z_0^.
-        ratio = self._honest_ratio()
-        if self._nonlinear:
-            # the ratio takes the force errors as zero (the vehicle the model's); the anchor was
-            # dropped because they are not, and the filter's own P, whose force-error states
-            # carry them, is right in rms but not in its tails (Tuning.nonlinear_std_factor)
-            ratio = cfg.tuning.nonlinear_std_factor ** 2
-        p_zr = float((self.anchor if self.anchor_trusted else kf).P[IZR, IZR])
-        # a covariance that rounding has taken to 0 or below (or past the floats) claims nothing:
-        # an infinite std, never a small one (seen on a 1 kg wheel damped at 1e5 N.s/m)
-        var = p_zr * ratio if p_zr > 0.0 else math.inf
-        base_var = var
-        t_rel = self.time - self._t_reset
-        if self._from_rest:
-            var *= 1.0 - self._deficit(t_rel, h)
-        var += start_var
-        shift = 0.0
-        if not cfg.tuning.start_offset and not isinstance(kf, MMEKF):
-            # the estimate relative to the reference (EstimatorConfig.start_offset): the start
-            # level is zero by definition; the filter's low-frequency lag is added back
-            if status != STATUS_REINIT and math.isfinite(x[IZR]):
-                self._x_int += self._ref_q * x[IZR] * h  # q at each step: no jump when q changes
-            shift = self._x_int
-        elif t_rel < START_TERM_SPAN:
-            cls = self.assumed_class
-            s0 = self._class_height_std.get(cls)
-            if s0 is None:
-                s0 = self._class_height_std[cls] = iso_road_height_std(iso8608.class_psd_n0(cls))
-            g = reference_step_response(t_rel, cfg.tuning.road_model)
-            off = self._offset
-            if (off is None and cfg.tuning.start_offset and g != 0.0 and status != STATUS_REINIT
-                    and not isinstance(kf, MMEKF)):
-                off = self._offset = StartOffset(iso8608.N_MIN, cfg.tuning.road_model.f_ref, s0,
-                                                 0.0 if self._from_rest else var)
-            if off is not None:
-                if off.due(t_rel, h) and math.isfinite(x[IZR]) and math.isfinite(var):
-                    off.add(t_rel, x[IZR], speed, var, g, s0)
-                shift = g * off.b
-                var += off.start_variance(g)
-            else:
-                var += (s0 * g) ** 2
-        elif self._offset is not None:
-            self._offset = None  # g(t) ~ 1e-8: its samples are no longer needed
-        out["road_height_est"] = x[IZR] + shift
+        if status != STATUS_REINIT and math.isfinite(x[IZR]) and not isinstance(kf, MMEKF):
+            # z_s_est and z_u_est relative to the reference: the filter's low-frequency lag added back
+            self._x_int += self._lag_rate() * x[IZR] * h  # q at each step: no jump when q changes
+        shift = self._x_int
         out["road_velocity_est"] = x[IVR]
-        if not var >= 0.0 and base_var >= 0.0:
-            # the start-height bookkeeping went negative (seen with road_estimator 2 on a 1 kg
-            # wheel on a 1000 N/m tyre under a 20 t body): the filter's own variance instead
-            var = base_var
-        out["road_height_std"] = math.sqrt(var) if var >= 0.0 else math.nan
         out["z_s_est"] = x[IZS] + shift
         out["v_s_est"] = x[IVS]
         out["z_u_est"] = x[IZU] + shift
@@ -1056,10 +963,16 @@ class SuspensionEstimator:
         out["road_class_est"] = int(self.classifier.road_class)
         out["nis"] = float(kf.nis)  # of the last update (kept through rejected steps)
         out["status"] = status
+        # a covariance that rounding has taken to 0 or below (or past the floats) claims nothing:
+        # an infinite std, never a small one (seen on a 1 kg wheel damped at 1e5 N.s/m). Once the
+        # anchor is dropped the band ratio takes the force errors as zero (the vehicle the
+        # model's), and the filter's own P, whose force-error states carry them, is right in rms
+        # but not in its tails (Tuning.nonlinear_std_factor)
+        p_zr = float((self.anchor if self.anchor_trusted else kf).P[IZR, IZR])
         band_var = (p_zr * self._band_ratio() * (cfg.tuning.nonlinear_std_factor ** 2 if self._nonlinear else 1.0)
-                    if p_zr > 0.0 else math.inf)
+                    + start_var if p_zr > 0.0 else math.inf)
         self._profile(out, x[IZR], speed, h, band_var, status)
-        out["iri_est"] = self.iri.update(self.distance, out["road_profile_est"])
+        out["iri_est"] = self.iri.update(self.distance, out["road_height_est"])
         return out
 
     def _mass_deflection(self, d: float) -> float:
@@ -1097,7 +1010,7 @@ class SuspensionEstimator:
         return a_s - b_s, a_u - b_u
 
     def _band_ratio(self) -> float:
-        """Steady-state variance of the road error in the distance band of road_profile_est
+        """Steady-state variance of the road error in the distance band of road_height_est
         (steady_state.band_error_variance: the ISO road of the assumed class and the sensor
         noise, the vehicle the model's) over the active filter's own P[z_r, z_r] (the anchor's,
         or the force-error filter's once the anchor is dropped), so that the std follows P
@@ -1123,9 +1036,10 @@ class SuspensionEstimator:
         return ratio
 
     def _profile(self, out: dict, road: float, speed: float, h: float, var: float, status: int) -> None:
-        """road_profile_est and road_profile_std: the road estimate ``road`` (m) high-passed in
-        distance (plant.profile_band), fed only with its increments while the car moves, so that
-        the profile holds while it stands (the road under the tyre does not change then; the
+        """road_height_est and road_height_std: the road filter's road ``road`` (m) freed of its
+        common-mode reference (road_profile.Unreference) and high-passed in distance
+        (plant.profile_band), fed only with its increments while the car moves, so that the
+        profile holds while it stands (the road under the tyre does not change then; the
         estimate's drift does not count) and a restart (re-initialisation) adds no jump. ``var``
         (m^2): the variance of the band error; held while standing."""
         moving = self.motion == MOVING
@@ -1136,14 +1050,9 @@ class SuspensionEstimator:
             if moving:
                 self._profile_u += du
         ds = abs(speed) * h if moving else 0.0
-        y = out["road_profile_est"] = self._band.step(ds, self._profile_u)
-        check = self.long_wave
-        if check.step(ds, self._profile_u, y, self.assumed_class) == EXCESS:
-            var += check.excess
-            if out["status"] == STATUS_OK:
-                out["status"] = STATUS_LONG_WAVE
-        if moving or "road_profile_std" not in out:
-            out["road_profile_std"] = math.sqrt(var) if var >= 0.0 else math.inf
+        out["road_height_est"] = self._band.step(ds, self._profile_u)
+        if moving or "road_height_std" not in out:
+            out["road_height_std"] = math.sqrt(var) if var >= 0.0 else math.inf
 
     def _mass_agrees(self, me: MassEstimator, h: float) -> tuple[float, float, bool]:
         """(since-change mass kg, its standard error kg, whether it agrees with the model mass):
@@ -1199,9 +1108,7 @@ class SuspensionEstimator:
             if self.classifier.update(self.distance, x[IZR], speed) != before:
                 f.set_road_class(self.classifier.road_class)
         out = self.outputs
-        out["road_height_est"] = x[IZR]
         out["road_velocity_est"] = x[IVR]
-        out["road_height_std"] = math.sqrt(var) if var > 0.0 else math.inf  # see step
         out["z_s_est"], out["v_s_est"], out["z_u_est"], out["v_u_est"] = x[IZS], x[IVS], x[IZU], x[IVU]
         out["susp_deflection_est"] = x[IZS] - x[IZU]
         out["tire_deflection_est"] = x[IZU] - x[IZR]
@@ -1211,7 +1118,7 @@ class SuspensionEstimator:
         out["nis"] = float(f.nis)
         out["status"] = status
         self._profile(out, x[IZR], speed, h, var if var > 0.0 else math.inf, status)  # the raw variance: an upper bound
-        out["iri_est"] = self.iri.update(self.distance, out["road_profile_est"])
+        out["iri_est"] = self.iri.update(self.distance, out["road_height_est"])
         return out
 
 

@@ -118,14 +118,6 @@ class Tuning:
     freeze_tol: float = 1e-8
     fast_gain: bool = True  # False: the full covariance recursion every step (same estimates)
     road_model: RoadModel = field(default_factory=RoadModel)
-    # What road_height_est estimates (docs/real-roads.md). False (the default): the road relative
-    # to the common-mode reference, the elevation above the start level passed through the
-    # reference's high-pass (harness.metrics.reference_road), with the filter's low-frequency
-    # lag corrected (steady_state.reference_lag) and road_height_std against that truth.
-    # True: the absolute height of a zero-mean ISO road, with the height the car started on
-    # estimated from the road estimate (start_offset.py; KF only); wrong on a road with grades
-    # or vertical curves.
-    start_offset: bool = False
     model_noise: ModelNoise = field(default_factory=ModelNoise)
     class_gain: float = 1.0  # in-band amplitude gain of the road estimate (class correction)
     # Re-filtering after a mass rebuild (see the module doc): when the road filter is rebuilt at

@@ -94,9 +94,11 @@ def _run(args: argparse.Namespace) -> int:
         print(line)
     print(f"  wrote {run.csv}")
     if args.plots and scenario.plots:
+        from ..plant.profile_band import PROFILE_CUTOFF
         from .plots import plot_result
 
-        for f in plot_result(run.result, out, scenario.name):
+        cutoff = float(scenario.parameters(True).get("SuspensionEstimator.profile_cutoff", PROFILE_CUTOFF))
+        for f in plot_result(run.result, out, scenario.name, cutoff=cutoff):
             print(f"  wrote {f}")
     return 0
 

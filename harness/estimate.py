@@ -56,7 +56,7 @@ UNITS: dict[str, dict[str, float]] = {
 JITTER = 0.01  # steps within this fraction of their median count as constant
 LONG_LOG = 10.0  # s of data above which a progress bar is shown
 ESTIMATOR = "SuspensionEstimator"
-OUTPUTS = ("road_height_est", "road_height_std", "road_profile_est", "road_profile_std", "sprung_mass_est", "mass_std",
+OUTPUTS = ("road_height_est", "road_height_std", "sprung_mass_est", "mass_std",
            "road_class_est", "status")
 
 
@@ -455,8 +455,8 @@ def estimate(log_path: str | Path, out: str | Path, names: dict[str, str] | None
         sm = smooth_default(*(ch[c][1:] for c in MEASURED), ch["vehicle_speed"][:-1], parameters, log.step)
         table["road_height_smooth"] = np.r_[est["road_height_est"][0], sm["road_height_est"]]
         table["road_height_smooth_std"] = np.r_[est["road_height_std"][0], sm["road_height_std"]]
-    # the IRI of the profile as a profiler reports it (docs/real-sensors.md), or of the smoothed road
-    iri = iri_table(d, table["road_height_smooth" if smooth else "road_profile_est"], segment)
+    # the IRI of the profile as a profiler reports it (docs/real-sensors.md), or of the smoothed one
+    iri = iri_table(d, table["road_height_smooth" if smooth else "road_height_est"], segment)
     rows = np.empty(len(iri), dtype=[("start_m", float), ("end_m", float), ("iri_m_per_km", float)])
     for j, k in enumerate(rows.dtype.names):
         rows[k] = iri[:, j]

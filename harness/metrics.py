@@ -7,21 +7,18 @@ same zero-phase 0.5 Hz Butterworth high-pass (sosfiltfilt), because acceleration
 road drift below it. The HP filter runs over the whole record and the warm-up is cut afterwards,
 so its edge transient falls in the warm-up.
 
-What ``road_height_est`` estimates (docs/real-roads.md): not the absolute elevation, which the
-accelerations and the deflection do not observe, but the elevation above the level the car
-started on, passed through the estimator's common-mode reference, the causal high-pass
-s^2 / (s^2 + 2 zeta w s + w^2) at f_ref = 0.01 Hz, zeta = 0.7071, in time, from rest at the
-start (``reference_road``). Long grades and the start level fall in its stop band; vertical
-curves of 100-300 m at 40-72 km/h (0.04-0.2 Hz) pass at 0.9-1.0 gain with a phase lead. The
-*raw* scores and the 2-sigma coverage compare the estimate with that truth; ``rmse_abs_mm``
-keeps the comparison with the absolute road (before this definition, "raw" meant that).
+What ``road_height_est`` estimates (docs/real-sensors.md): not the absolute elevation, which the
+accelerations and the deflection do not observe, but the profile as inertial profilers report
+it, the elevation high-passed in distance at the cut-off (``reference_profile``): the start
+level, grades and vertical curves fall in its stop band. The truth of every score is that
+profile of the true elevation: the *raw* scores and the 2-sigma coverage compare the estimate
+with it, and the HP scores compare the HP of both.
 """
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import butter, lsim, sosfiltfilt
+from scipy.signal import butter, sosfiltfilt
 
-from ..estimators.model import RoadModel
 from ..plant.profile_band import PROFILE_CUTOFF, highpass_profile
 
 HP_CUTOFF = 0.5  # Hz
@@ -41,58 +38,35 @@ def highpass(x: np.ndarray, h: float, cutoff: float = HP_CUTOFF, order: int = HP
     return sosfiltfilt(sos, np.asarray(x, float))
 
 
-def reference_road(t: np.ndarray, road: np.ndarray, f_ref: float = RoadModel.f_ref,
-                   zeta_ref: float = RoadModel.zeta_ref, v0: float = 0.0, start: float | None = None) -> np.ndarray:
-    """What ``road_height_est`` estimates (m) at times t (s), from the true road elevation
-    ``road`` (m) there: y'' + 2 zeta w y' + w^2 y = road'' with y = y' = 0 at t[0], w = 2 pi
-    f_ref, i.e. the high-pass s^2 / (s^2 + 2 zeta w s + w^2) of road - road[0] - v0 (t - t[0]).
-    ``v0`` (m/s) is the body's vertical velocity at t[0]: 0 for a car that starts at rest, as
-    QuarterCar.fmu does (it settles on the first road value); ``start`` (m) the level the car
-    stood at rest on before t[0], default road[0] (a plant that starts at 0 under a road that
-    starts elsewhere: start = 0, and the step passes through the high-pass). The start level and a constant
-    grade from the start give 0; a grade that begins later gives a transient that decays over
-    ~1 / (zeta w) = 23 s. Exact for a road linear between the samples (scipy.signal.lsim)."""
-    t = np.asarray(t, float)
-    z = np.asarray(road, float)
-    if not f_ref > 0:
-        return z - z[0]
-    w = 2 * np.pi * f_ref
-    u = z - (z[0] if start is None else float(start)) - v0 * (t - t[0])
-    _, y, _ = lsim(([1.0, 0.0, 0.0], [1.0, 2 * zeta_ref * w, w * w]), u, t - t[0])
-    return np.asarray(y, float)
-
-
 def _cut(t: np.ndarray, *xs: np.ndarray, warmup: float) -> list[np.ndarray]:
     keep = np.asarray(t) >= np.asarray(t)[0] + warmup
     return [np.asarray(x)[keep] for x in xs]
 
 
-def road_scores(t: np.ndarray, est: np.ndarray, truth: np.ndarray, std: np.ndarray | None = None,
-                warmup: float = WARMUP, reference: bool = True, start: float | None = None) -> dict[str, float]:
-    """Road scores of an estimate ``est`` against the true road ``truth`` (m, the elevation) sampled
-    at times t (s, uniform) from the start of the run.
+def road_scores(t: np.ndarray, est: np.ndarray, truth: np.ndarray, std: np.ndarray | None = None, *,
+                distance: np.ndarray, warmup: float = WARMUP, cutoff: float = PROFILE_CUTOFF) -> dict[str, float]:
+    """Road scores of an estimate ``est`` (m, road_height_est) against the true elevation
+    ``truth`` (m) at ``distance`` (m) sampled at times t (s, uniform) from the start of the run,
+    both as ``reference_profile`` at ``cutoff`` m makes the truth (what the estimate estimates).
 
     Keys: err_std_raw_pct, err_std_hp_pct (100 std(err)/std(truth)), gain_hp
-    (std(HP est)/std(HP truth), the in-band gain), rmse_raw_mm, rmse_hp_mm, rmse_abs_mm (against
-    the absolute elevation) and, with ``std`` (the reported 1-sigma, m), coverage_2sigma:
-    fraction of raw errors within +-2 std. Raw scores and coverage are against
-    ``reference_road(t, truth)`` (what the estimate estimates, see the module doc), or with
-    ``reference`` False against ``truth`` itself (estimators that report an absolute level);
-    ``start``: as ``reference_road``'s.
+    (std(HP est)/std(HP truth), the in-band gain), rmse_raw_mm, rmse_hp_mm, profile_rms_mm (of the
+    truth) and, with ``std`` (the reported 1-sigma, m), coverage_2sigma: fraction of raw errors
+    within +-2 std.
     """
     t = np.asarray(t, float)
     h = float(np.median(np.diff(t)))
-    est, absolute = np.asarray(est, float), np.asarray(truth, float)
-    truth = reference_road(t, absolute, start=start) if reference else absolute
-    hp_est, hp_truth = highpass(est, h), highpass(absolute, h)
-    e, r, he, hr, a = _cut(t, est, truth, hp_est, hp_truth, absolute, warmup=warmup)
+    est = np.asarray(est, float)
+    truth = reference_profile(np.asarray(distance, float), np.asarray(truth, float), cutoff)
+    hp_est, hp_truth = highpass(est, h), highpass(truth, h)
+    e, r, he, hr = _cut(t, est, truth, hp_est, hp_truth, warmup=warmup)
     out = {
-        "rmse_abs_mm": float(1e3 * np.sqrt(np.mean((e - a) ** 2))),
         "err_std_raw_pct": float(100 * np.std(e - r) / np.std(r)),
         "err_std_hp_pct": float(100 * np.std(he - hr) / np.std(hr)),
         "gain_hp": float(np.std(he) / np.std(hr)),
         "rmse_raw_mm": float(1e3 * np.sqrt(np.mean((e - r) ** 2))),
         "rmse_hp_mm": float(1e3 * np.sqrt(np.mean((he - hr) ** 2))),
+        "profile_rms_mm": float(1e3 * np.sqrt(np.mean(r ** 2))),
     }
     if std is not None:
         (s,) = _cut(t, np.asarray(std, float), warmup=warmup)
@@ -101,39 +75,12 @@ def road_scores(t: np.ndarray, est: np.ndarray, truth: np.ndarray, std: np.ndarr
 
 
 def reference_profile(distance: np.ndarray, height: np.ndarray, cutoff: float = PROFILE_CUTOFF) -> np.ndarray:
-    """The profile in a distance band, as inertial profilers report it (m): the true elevation
-    ``height`` (m) at ``distance`` (m, non-decreasing) high-passed in distance at the wavelength
-    ``cutoff`` (m; plant.profile_band: second order, from rest at the first point, so the start
-    level and a constant grade give 0). It does not depend on the speed, and a stop changes
-    nothing."""
+    """What ``road_height_est`` estimates: the profile in a distance band, as inertial profilers
+    report it (m): the true elevation ``height`` (m) at ``distance`` (m, non-decreasing)
+    high-passed in distance at the wavelength ``cutoff`` (m; plant.profile_band: third order,
+    from rest at the first point, so the start level, a constant grade and a vertical curve give
+    0). It does not depend on the speed, and a stop changes nothing."""
     return highpass_profile(distance, height, cutoff)
-
-
-def profile_scores(t: np.ndarray, distance: np.ndarray, profile: np.ndarray, truth: np.ndarray,
-                   std: np.ndarray | None = None, cutoff: float = PROFILE_CUTOFF,
-                   warmup: float = WARMUP) -> dict[str, float]:
-    """Scores of ``profile`` (m, e.g. road_profile_est) against ``reference_profile`` of the true
-    elevation ``truth`` (m) at ``distance`` (m), after ``warmup`` s of the times ``t`` (s). Keys:
-    profile_rmse_mm, profile_rms_mm (of the reference), profile_err_pct (100 rmse / rms) and,
-    with ``std`` (the reported 1-sigma, m), profile_coverage: the share of errors within +-2 std."""
-    ref = reference_profile(distance, truth, cutoff)
-    e, r = _cut(t, np.asarray(profile, float) - ref, ref, warmup=warmup)
-    out = {"profile_rmse_mm": float(1e3 * np.sqrt(np.mean(e ** 2))),
-           "profile_rms_mm": float(1e3 * np.sqrt(np.mean(r ** 2))),
-           "profile_err_pct": float(100 * np.sqrt(np.mean(e ** 2) / np.mean(r ** 2)))}
-    if std is not None:
-        (s,) = _cut(t, np.asarray(std, float), warmup=warmup)
-        out["profile_coverage"] = float(np.mean(np.abs(e) <= 2 * s))
-    return out
-
-
-def band_scores(t: np.ndarray, distance: np.ndarray, est: np.ndarray, truth: np.ndarray,
-                cutoff: float = PROFILE_CUTOFF, warmup: float = WARMUP) -> dict[str, float]:
-    """The error of any road estimate ``est`` (m) in the distance band of ``reference_profile``:
-    ``profile_scores`` of the estimate passed through the same high-pass, so that a level, a
-    grade or a drift longer than ``cutoff`` m leaves no error. Keys: band_rmse_mm, band_err_pct."""
-    s = profile_scores(t, distance, reference_profile(distance, est, cutoff), truth, cutoff=cutoff, warmup=warmup)
-    return {"band_rmse_mm": s["profile_rmse_mm"], "band_err_pct": s["profile_err_pct"]}
 
 
 def mass_error_pct(est: np.ndarray, truth: np.ndarray) -> np.ndarray:

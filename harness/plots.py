@@ -20,6 +20,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..plant.profile_band import PROFILE_CUTOFF
+
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
@@ -274,13 +276,15 @@ def deflection_figure(result: np.ndarray, name: str, warmup: float) -> Figure:
     return _finish(fig)
 
 
-def _score_road(result: np.ndarray, warmup: float) -> dict[str, float]:
+def _score_road(result: np.ndarray, warmup: float, cutoff: float = PROFILE_CUTOFF) -> dict[str, float]:
     """``metrics.road_scores`` called as ``runner.summary`` calls it."""
     from .metrics import road_scores
 
+    if "ISORoad.distance" not in result.dtype.names:
+        raise ValueError("no ISORoad.distance recorded")
     std = result[_EST + "road_height_std"] if _EST + "road_height_std" in result.dtype.names else None
     return road_scores(result["time"], result[_EST + "road_height_est"], result["ISORoad.road_height"], std,
-                       warmup=warmup)
+                       warmup=warmup, distance=result["ISORoad.distance"], cutoff=cutoff)
 
 
 def _score_text(scores: dict[str, float], warmup: float, start: str) -> str:
@@ -295,12 +299,12 @@ def _score_text(scores: dict[str, float], warmup: float, start: str) -> str:
     return text
 
 
-def road_estimate_figure(result: np.ndarray, name: str, warmup: float) -> Figure:
+def road_estimate_figure(result: np.ndarray, name: str, warmup: float, cutoff: float = PROFILE_CUTOFF) -> Figure:
     """The road estimate (mm) against the true road and its errors against travelled distance (m),
     with the scores of ``metrics.road_scores``: the raw error against what the estimate tracks
-    (``metrics.reference_road``) with the reported ±2σ band, and the error after the high-pass
-    at ``metrics.HP_CUTOFF`` (the headline score)."""
-    from .metrics import HP_CUTOFF, highpass, reference_road
+    (``metrics.reference_profile``) with the reported ±2σ band, and the error after the high-pass
+    at ``metrics.HP_CUTOFF`` (the headline score); ``cutoff`` (m): the estimator's profile_cutoff."""
+    from .metrics import HP_CUTOFF, highpass, reference_profile
 
     x, xlabel, unit = _road_axis(result)
     t = np.asarray(result["time"], float)
@@ -310,10 +314,11 @@ def road_estimate_figure(result: np.ndarray, name: str, warmup: float) -> Figure
         else None
     x_w = float(np.interp(t[0] + warmup, t, x))
     try:
-        scores = _score_road(result, warmup)
-        ref = 1e3 * reference_road(t, true_m)
+        scores = _score_road(result, warmup, cutoff)
+        ref_m = reference_profile(np.asarray(result["ISORoad.distance"], float), true_m, cutoff)
+        ref = 1e3 * ref_m
         h = float(np.median(np.diff(t)))
-        hp_err = 1e3 * (highpass(result[_EST + "road_height_est"], h) - highpass(true_m, h))
+        hp_err = 1e3 * (highpass(result[_EST + "road_height_est"], h) - highpass(ref_m, h))
         headline = _score_text(scores, warmup, f"from {x_w:.0f} {unit}")
     except ValueError as e:  # too short to score (the high-pass needs a few seconds): plot without
         ref, hp_err, headline = None, None, f"no score ({e})"
@@ -332,12 +337,12 @@ def road_estimate_figure(result: np.ndarray, name: str, warmup: float) -> Figure
         a.plot(x, true, **_TRUE, label="true road" if first else None)
         if ref is not None:
             a.plot(x, ref, color="k", lw=0.6, ls=(0, (3, 2)), zorder=4,
-                   label="true road as tracked (metrics.reference_road)" if first else None)
+                   label="true profile (metrics.reference_profile)" if first else None)
     _zoom(full[0], zoom[0], x, win, est, true, *(() if ref is None else (ref,)), unit=unit)
     full[0].set_ylabel("height (mm)")
 
     raw = est - (ref if ref is not None else true)
-    what = "estimate - tracked road" if ref is not None else "estimate - true"
+    what = "estimate - true profile" if ref is not None else "estimate - true"
     for a in (full[1], zoom[1]):
         first = a is full[1]
         if std is not None:
@@ -535,13 +540,14 @@ def iri_figure(rows: list[tuple[float, float, float, float]], name: str, start: 
     return _finish(fig)
 
 
-def figures(result: np.ndarray, name: str, warmup: float | None = None) -> dict[str, Figure]:
+def figures(result: np.ndarray, name: str, warmup: float | None = None,
+            cutoff: float = PROFILE_CUTOFF) -> dict[str, Figure]:
     """The figures of a record (structured array of ``runner.run_scenario``) by file suffix:
     ``road``, ``accelerations``, ``deflection`` and, with estimator columns, ``road_estimate``,
     ``sprung_mass``, ``road_psd`` (20 m of road after the warm-up, at least) and ``iri``.
 
     ``warmup`` (s) is shaded as not scored; default ``metrics.warmup_for(time)``, as in the run's
-    summary.
+    summary; ``cutoff`` (m): the estimator's profile_cutoff, the truth's band.
     """
     from .metrics import iri_segments, warmup_for
 
@@ -560,7 +566,7 @@ def figures(result: np.ndarray, name: str, warmup: float | None = None) -> dict[
     if has("QuarterCar.susp_deflection"):
         out["deflection"] = deflection_figure(result, name, warmup)
     if has(_EST + "road_height_est", "ISORoad.road_height"):
-        out["road_estimate"] = road_estimate_figure(result, name, warmup)
+        out["road_estimate"] = road_estimate_figure(result, name, warmup, cutoff)
     if has(_EST + "sprung_mass_est", "QuarterCar.sprung_mass"):
         out["sprung_mass"] = sprung_mass_figure(result, name)
     if has(_EST + "road_height_est", "ISORoad.road_height", "ISORoad.distance"):
@@ -574,12 +580,13 @@ def figures(result: np.ndarray, name: str, warmup: float | None = None) -> dict[
     return out
 
 
-def plot_result(result: np.ndarray, out: Path, name: str, warmup: float | None = None) -> list[Path]:
+def plot_result(result: np.ndarray, out: Path, name: str, warmup: float | None = None,
+                cutoff: float = PROFILE_CUTOFF) -> list[Path]:
     """Write the ``figures`` of a record as ``<out>/<name>_<suffix>.png``; returns the files written."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     files = []
-    for suffix, fig in figures(result, name, warmup).items():
+    for suffix, fig in figures(result, name, warmup, cutoff).items():
         path = out / f"{name}_{suffix}.png"
         fig.savefig(path, dpi=DPI)
         files.append(path)

@@ -93,7 +93,9 @@ def rts_smooth(record: FilterRecord) -> tuple[np.ndarray, np.ndarray]:
 # a recorded FMU run
 # --------------------------------------------------------------------------------------------------
 # SuspensionEstimator outputs that are the 6 states of estimators.model, in its order
-FMU_STATES = ("z_s_est", "v_s_est", "z_u_est", "v_u_est", "road_height_est", "road_velocity_est")
+# the outputs that give the filter's six states (the road: z_u_est - tire_deflection_est, the
+# filter's road before the profile's high-pass)
+FMU_STATES = ("z_s_est", "v_s_est", "z_u_est", "v_u_est", "tire_deflection_est", "road_velocity_est")
 
 
 def fmu_model(parameters: dict, speed: float, h: float, road_class: int | None = None,
@@ -143,15 +145,25 @@ def smooth_fmu_outputs(outputs: dict, parameters: dict, speed: float, h: float,
     robust default, the VB-AKF ...), its run is smoothed by the same backward pass with the same
     model and covariance: smoothing compared on equal terms. For a filter at its stationary gain on
     that model (the KF, road_estimator 0) this is its exact RTS smoother (tests/test_smoothing.py).
-    Returns the smoothed samples under the same names, plus ``susp_deflection_est`` and
-    ``tire_deflection_est``."""
+    Returns the smoothed z_s_est, v_s_est, z_u_est, v_u_est, road_velocity_est,
+    susp_deflection_est, tire_deflection_est, and road_height_est, the smoothed road made a
+    profile as the estimator makes its own (``profile_of``; the KF family's reference taken off)."""
+    from suspension_estimation.estimators.suspension import EstimatorConfig
+
     F, Q, P = fmu_model(parameters, speed, h, road_class, road_hold)
-    x = np.stack([np.asarray(outputs[k], float) for k in FMU_STATES], axis=-1)
+    cols = [np.asarray(outputs[k], float) for k in FMU_STATES]
+    cols[4] = cols[2] - cols[4]  # the filter's road
+    x = np.stack(cols, axis=-1)
     K = x.shape[-2]
     xs, _ = rts_smooth(FilterRecord(x, np.broadcast_to(P, (K,) + P.shape), F, Q))
-    out = {k: xs[..., i] for i, k in enumerate(FMU_STATES)}
+    out = {k: xs[..., i] for i, k in enumerate(FMU_STATES) if k != "tire_deflection_est"}
     out["susp_deflection_est"] = out["z_s_est"] - out["z_u_est"]
-    out["tire_deflection_est"] = out["z_u_est"] - out["road_height_est"]
+    out["tire_deflection_est"] = out["z_u_est"] - xs[..., 4]
+    cfg = EstimatorConfig(**parameters)
+    rm = cfg.tuning.road_model
+    ref = (rm.f_ref, rm.zeta_ref) if int(cfg.road_estimator) in (0, 1, 2) else (0.0, 0.0)
+    out["road_height_est"] = np.apply_along_axis(
+        profile_of, -1, xs[..., 4], np.full(K, float(speed)), h, cfg.profile_cutoff, cfg.tuning.standstill_speed, ref)
     return out
 
 
@@ -414,13 +426,13 @@ def _correction_sos(h: float) -> np.ndarray:
 
 def reference_correction(z_s: np.ndarray, z_r: np.ndarray, h: float, road_model=None) -> np.ndarray:
     """What to add (m) to body, wheel and road heights estimated relative to the estimators'
-    common-mode reference to make them relative to the road's own, which is what
-    ``harness.metrics.reference_road`` defines as the truth; z_s, z_r (m): the body and road
+    common-mode reference to make them relative to the road's own, the road's high-pass
+    z_r - LP(z_r), which ``profile_of`` then takes off exactly; z_s, z_r (m): the body and road
     estimates, one sample per step of h s from a car at rest at t = 0. Causal.
 
     The model's reference follows the BODY: c'' = 2 zeta w (z_s' - c') + w^2 (z_s - c), so the
     estimates are z - LP(z_s), LP = (2 zeta w s + w^2) / (s^2 + 2 zeta w s + w^2) = 1 - HP
-    (``estimators.model``, w = 2 pi f_ref), while reference_road = z_r - LP(z_r). The difference
+    (``estimators.model``, w = 2 pi f_ref), while the road's own is z_r - LP(z_r). The difference
     is LP(z_s - z_r): in band LP ~ 2 zeta w / s, 1.3 % at the body resonance (1.1 Hz), where
     z_s - z_r is as large as the road: 0.5-0.9 points off the causal default's HP error %
     (docs/smoothing.md). z_s - z_r passes a second-order Butterworth high-pass at CORRECTION_HZ
@@ -457,6 +469,26 @@ def _blend(hi: np.ndarray, lo: np.ndarray, hz: float, h: float) -> np.ndarray:
     return hi + sosfiltfilt(butter(2, hz, fs=1.0 / h, output="sos"), lo - hi, axis=0, padlen=pad)
 
 
+def profile_of(road: np.ndarray, speed: np.ndarray, h: float, cutoff: float, standstill: float,
+               reference: tuple[float, float]) -> np.ndarray:
+    """The road profile (m) of a road estimate ``road`` (m, relative to the common-mode reference
+    ``reference`` = (f_ref, zeta_ref)) as the estimator makes road_height_est: freed of the
+    reference (estimators.road_profile.Unreference), its increments while the car moves (|speed|
+    >= ``standstill`` m/s) high-passed in distance at ``cutoff`` m (plant.profile_band)."""
+    from suspension_estimation.estimators.road_profile import Unreference
+    from suspension_estimation.plant.profile_band import DistanceHighpass
+
+    un, band = Unreference(*reference), DistanceHighpass(cutoff)
+    out, u = np.empty(len(road)), 0.0
+    for k, (r, sp) in enumerate(zip(np.asarray(road, float).tolist(), np.abs(np.asarray(speed, float)).tolist())):
+        moving = sp >= standstill
+        du = un.step(r, h)
+        if moving:
+            u += du
+        out[k] = band.step(sp * h if moving else 0.0, u)
+    return out
+
+
 def smooth_default(acc_sprung: np.ndarray, acc_unsprung: np.ndarray, susp_deflection: np.ndarray,
                    vehicle_speed: np.ndarray | float, parameters: dict | None = None, h: float = 1e-3,
                    blend_hz: float | None = None) -> dict[str, np.ndarray]:
@@ -489,14 +521,15 @@ def smooth_default(acc_sprung: np.ndarray, acc_unsprung: np.ndarray, susp_deflec
        y_i^2 <= outlier_nis S_ii is left out of the update (none left: a predict-only step).
     3. Output: x = x_hi + B (x_lo - x_hi), B the second-order Butterworth at blend_hz forwards and
        backwards (zero phase: exactly complementary); the heights plus ``reference_correction``
-       (the model's reference follows the body, reference_road the road) and then q int z_r dt,
+       (the model's reference follows the body, the road's own the road) and then q int z_r dt,
        q the smoothed output's lag below the band (``_lag``) as the estimator adds its own; without
        the anchor the exact model's q, as the estimator keeps the anchor's.
     4. road_height_std = sqrt(P_k|K[z_r, z_r] r): P_k|K lo's smoothed covariance, r the ratio of
        the steady-state output's real raw error on an ISO road of the class found (sensor noise
-       and road through plant, smoothers and output; ``_steady``) to lo's fixed point of P_k|K, as
-       the estimator's ``_honest_ratio`` does for its filter. Without the anchor:
-       ``Tuning.nonlinear_std_factor`` sqrt(max(P_k|K, its fixed point)), as the estimator.
+       and road through plant, smoothers and output; ``_steady``) to lo's fixed point of P_k|K.
+       Without the anchor: ``Tuning.nonlinear_std_factor`` sqrt(max(P_k|K, its fixed point)). The
+       error before the profile's high-pass: an upper bound of the profile's.
+    5. road_height_est: the road of 3., as the estimator makes its output (``profile_of``).
 
     Returned keys: road_height_est, road_velocity_est, road_height_std, z_s_est, v_s_est, z_u_est,
     v_u_est, susp_deflection_est, tire_deflection_est (smoothed, the contract's units);
@@ -517,8 +550,8 @@ def smooth_default(acc_sprung: np.ndarray, acc_unsprung: np.ndarray, susp_deflec
     est = SuspensionEstimator(**(parameters or {}))
     cfg = est.cfg
     tun = cfg.tuning
-    if int(cfg.road_estimator) != 2 or tun.start_offset:
-        raise ValueError(f"smooth_default smooths road_estimator 2 (without start_offset), not {cfg.road_estimator}")
+    if int(cfg.road_estimator) != 2:
+        raise ValueError(f"smooth_default smooths road_estimator 2, not {cfg.road_estimator}")
     blend_hz = float(tun.blend_hz if blend_hz is None else blend_hz)
 
     # 1. the causal run
@@ -615,7 +648,10 @@ def smooth_default(acc_sprung: np.ndarray, acc_unsprung: np.ndarray, susp_deflec
     # without the anchor the force-error filter's error is not one built up from rest (the
     # estimator's _distrust_anchor): at least its fixed point's
     std = np.sqrt(var * ratio) if anchor else np.sqrt(np.maximum(var, p_fixed)) * tun.nonlinear_std_factor
-    return {"road_height_est": x[:, IZR], "road_velocity_est": x[:, IVR], "road_height_std": std,
+    # 5. the profile, as the estimator reports it: the smoothed road freed of the reference and
+    # high-passed in distance while the car moves
+    road = profile_of(x[:, IZR], v, h, cfg.profile_cutoff, tun.standstill_speed, (rm.f_ref, rm.zeta_ref))
+    return {"road_height_est": road, "road_velocity_est": x[:, IVR], "road_height_std": std,
             "z_s_est": x[:, IZS], "v_s_est": x[:, IVS], "z_u_est": x[:, IZU], "v_u_est": x[:, IVU],
             "susp_deflection_est": x[:, IZS] - x[:, IZU], "tire_deflection_est": x[:, IZU] - x[:, IZR],
             "causal_road_height_est": causal, "causal_road_height_std": causal_std, "causal_z_s_est": causal_zs,

@@ -1,4 +1,8 @@
-"""Paper 003's observers (EKF, UKF, dual state + mass observer) on the nonlinear plant core."""
+"""Paper 003's observers (EKF, UKF, dual state + mass observer) on the nonlinear plant core.
+
+A filter's road is scored as the profile that road_height_est reports of it (codes 3 and 5 take
+no reference off: the road high-passed in distance, ``profile``) against the profile of the true
+road (harness.metrics.road_scores)."""
 from __future__ import annotations
 
 import json
@@ -11,7 +15,7 @@ from suspension_estimation.estimators.airspring_observers import (EKF, UKF, Dual
                                                                   NonlinearModel)
 from suspension_estimation.estimators.model import measurement_covariance
 from suspension_estimation.estimators.state_classes import STATE_CLASSES
-from suspension_estimation.harness.metrics import road_scores
+from suspension_estimation.harness.metrics import highpass, reference_profile, road_scores
 from suspension_estimation.plant import iso8608
 from suspension_estimation.plant.nonlinear_car import NonlinearQuarterCar
 from suspension_estimation.plant.quarter_car import SensorNoise
@@ -42,7 +46,19 @@ def ride(h: float, t_end: float, seed: int = 1, gd_n0: float = GD) -> tuple[np.n
 
 
 def road_estimate(f, meas: np.ndarray) -> np.ndarray:
+    """The filter's road (m) after each measurement."""
     return np.array([f.step(m)[4] for m in meas])
+
+
+def profile(t: np.ndarray, road: np.ndarray) -> np.ndarray:
+    """The profile (m) road_height_est reports from a filter's road ``road`` (m) at the times t (s)
+    of ``ride``: high-passed in distance (SPEED t), as SuspensionEstimator does for codes 3 and 5."""
+    return reference_profile(SPEED * t, road)
+
+
+def scores(t: np.ndarray, road: np.ndarray, z: np.ndarray, warmup: float) -> dict[str, float]:
+    """road_scores of the profile of a filter's road ``road`` against the true road z (m)."""
+    return road_scores(t, profile(t, road), z, warmup=warmup, distance=SPEED * t)
 
 
 @pytest.mark.parametrize("NL", [NL, NonlinearModel(V, DEFAULT_AIR_SPRING, DEFAULT_DAMPER, SPEED, GD, bias_q=1.0)])
@@ -64,30 +80,37 @@ def test_mass_terms_and_jacobians_are_those_of_the_maps(NL):
 
 
 def test_ekf_with_the_plant_maps_holds_where_the_linearisation_does_not():
+    """Measured over ride seeds 1-4 (the test: 1): HP error 2.4-3.4 % (gain 1.002-1.011) with the
+    plant's maps, 30-36 % linearised (10-15 times as much)."""
     h = 0.001
     t, meas, z = ride(h, 8.0)
-    nl = road_scores(t, road_estimate(EKF(NL, h, R, V.m_s), meas), z, warmup=3.0)
+    nl = scores(t, road_estimate(EKF(NL, h, R, V.m_s), meas), z, 3.0)
     linear = NonlinearModel(V, None, None, SPEED, GD)  # told only the static point: 20000 N/m, 2000 N.s/m
-    lin = road_scores(t, road_estimate(EKF(linear, h, R, V.m_s), meas), z, warmup=3.0)
-    assert nl["err_std_hp_pct"] < 5.0 and 0.9 < nl["gain_hp"] < 1.1, nl
+    lin = scores(t, road_estimate(EKF(linear, h, R, V.m_s), meas), z, 3.0)
+    assert nl["err_std_hp_pct"] < 5.0 and 0.95 < nl["gain_hp"] < 1.05, nl
     # the asymmetric damper's mean force (pack-down) is what the linear model cannot explain
-    assert lin["err_std_hp_pct"] > 3 * nl["err_std_hp_pct"], (lin, nl)
+    assert lin["err_std_hp_pct"] > 5 * nl["err_std_hp_pct"], (lin, nl)
 
 
 def test_ukf_agrees_with_the_ekf():
+    """Measured over ride seeds 1-4 (the test: 1): HP error 3.2-4.2 % (UKF), 3.2-4.3 % (EKF);
+    the two HP profiles differ by 0.007-0.015 mm rms, 3-6 % of either's HP error (0.21-0.28 mm)."""
     h = 0.002
     t, meas, z = ride(h, 5.0)
     ekf = road_estimate(EKF(NL, h, R, V.m_s), meas)
     ukf = road_estimate(UKF(NL, h, R, V.m_s), meas)
-    s_ekf, s_ukf = road_scores(t, ekf, z, warmup=2.0), road_scores(t, ukf, z, warmup=2.0)
-    assert s_ukf["err_std_hp_pct"] < 5.0 and 0.9 < s_ukf["gain_hp"] < 1.1, s_ukf
+    s_ekf, s_ukf = scores(t, ekf, z, 2.0), scores(t, ukf, z, 2.0)
+    assert s_ukf["err_std_hp_pct"] < 5.0 and 0.95 < s_ukf["gain_hp"] < 1.05, s_ukf
     # the two estimates differ by less than either's error from the truth
-    between = road_scores(t, ukf, ekf, warmup=2.0)["rmse_hp_mm"]
-    assert between < 0.5 * min(s_ekf["rmse_hp_mm"], s_ukf["rmse_hp_mm"]), (between, s_ekf, s_ukf)
+    d = (highpass(profile(t, ukf), h) - highpass(profile(t, ekf), h))[t >= t[0] + 2.0]
+    between = 1e3 * np.sqrt(np.mean(d ** 2))
+    assert between < 0.2 * min(s_ekf["rmse_hp_mm"], s_ukf["rmse_hp_mm"]), (between, s_ekf, s_ukf)
 
 
 def test_dual_observer_finds_the_mass_from_either_side():
-    """Paper 003's case: the estimator starts 20 % off the sprung mass (here also -20 %)."""
+    """Paper 003's case: the estimator starts 20 % off the sprung mass (here also -20 %).
+    Measured over ride seeds 1-4 (the test: 1): HP error 6.2-7.6 %, masses 390.9-393.1 kg from
+    either side (-4.1 to -4.6 %), the two ends within 0.01 kg."""
     h = 0.001
     t, meas, z = ride(h, 8.0)
     masses = []
@@ -95,7 +118,7 @@ def test_dual_observer_finds_the_mass_from_either_side():
         dual = DualObserver(NL, h, R, start)
         est = road_estimate(dual, meas)
         masses.append(dual.mass)
-        assert road_scores(t, est, z, warmup=3.0)["err_std_hp_pct"] < 10.0
+        assert scores(t, est, z, 3.0)["err_std_hp_pct"] < 10.0
     # both ends reach the same estimate, within 8 % of the truth: the mass filter's regressor
     # takes the state filter's suspension velocity, which is shrunk by about 2 %, and the
     # exchange compounds it to about -5 % (docs/nonlinear-plant.md)
@@ -153,7 +176,9 @@ def test_filters_save_as_data_and_go_on_identically():
 def test_codes_compose_and_predict_through_missing_channels(road):
     """road_estimator 3 / 5 composed by SuspensionEstimator: a burst of NaN on the body
     accelerometer is predicted through (status 1, the estimate stays finite and on the road),
-    and with the linear laws (spring_model = damper_model = 0) the filter is the linear model's."""
+    and with the linear laws (spring_model = damper_model = 0) the filter is the linear model's.
+    road_height_est is the profile of the filter's road: HP error 2.0-2.7 % (gain 0.995-1.001)
+    over ride seeds 1-4 (the test: 1), codes 3 and 5 alike."""
     h = 1e-3
     t, meas, z = ride(h, 6.0)
     est = SuspensionEstimator(road_estimator=road, mass_estimator=0, spring_model=1, damper_model=1, road_class=3)
@@ -167,8 +192,8 @@ def test_codes_compose_and_predict_through_missing_channels(road):
     assert (status[4000:4100] == 1).all() and (np.delete(status, range(4000, 4100)) == 0).all()
     road_est = np.array([o["road_height_est"] for o in out])
     assert np.isfinite(road_est).all()
-    s = road_scores(t, road_est, z, warmup=3.0)
-    assert s["err_std_hp_pct"] < 5.0 and 0.9 < s["gain_hp"] < 1.1, s
+    s = road_scores(t, road_est, z, warmup=3.0, distance=SPEED * t)
+    assert s["err_std_hp_pct"] < 5.0 and 0.95 < s["gain_hp"] < 1.05, s
     lin = SuspensionEstimator(road_estimator=road, mass_estimator=0)
     f = lin.composed
     lin.step(*meas[0], SPEED, h)
@@ -177,12 +202,16 @@ def test_codes_compose_and_predict_through_missing_channels(road):
 
 def test_the_force_bias_holds_the_absolute_road_height():
     """Without the force-bias state the asymmetric damper's mean force, which a filter gets a
-    fraction of a newton wrong, can only be explained by the common-mode reference: the raw road
-    estimate sits tenths of a metre off. With it the bias takes that force up."""
+    fraction of a newton wrong, can only be explained by the common-mode reference: the filter's
+    own road (z_u_est - tire_deflection_est) sits tenths of a metre off the true elevation. With
+    it the bias takes that force up. Measured over ride seeds 1-8 (the test: 1), rms after 8 s:
+    152-244 mm without, 15-65 mm with (3.7-13 times less; seed 1: 193 / 28 mm). (The profile,
+    road_height_est, takes a level off either way: 0.8-1.5 mm rms error with or without.)"""
     h = 1e-3
     t, meas, z = ride(h, 20.0)
     raw = {}
     for q in (0.0, 1.0):
         f = EKF(NonlinearModel(V, DEFAULT_AIR_SPRING, DEFAULT_DAMPER, SPEED, GD, bias_q=q), h, R, V.m_s)
-        raw[q] = road_scores(t, road_estimate(f, meas), z, warmup=8.0)["rmse_raw_mm"]
-    assert raw[1.0] < 50.0 and raw[1.0] < raw[0.0] / 3, raw
+        err = (road_estimate(f, meas) - z)[t >= t[0] + 8.0]
+        raw[q] = 1e3 * float(np.sqrt(np.mean(err ** 2)))  # mm
+    assert raw[0.0] > 100.0 and raw[1.0] < 100.0 and raw[1.0] < raw[0.0] / 2.5, raw

@@ -8,14 +8,19 @@ import pytest
 from fmpy.fmi1 import FMICallException
 
 from fmu_driver import Driven
-from suspension_estimation.harness.metrics import road_scores
-from test_estimator_fmu import loop
+from suspension_estimation.harness.metrics import highpass, road_scores
+from test_estimator_fmu import V, loop
 from test_fmu_state import advance
 
 NONLINEAR = {"spring_model": 1, "damper_model": 1}  # the plant's default air spring and damper
 
 
 def test_observers_told_the_maps_track_the_road_and_the_mass_through_the_fmus(dist):
+    """ISO C at V (40 km/h), 8 s scored after 3 s against the profile of the true road (distance
+    V t). Measured over road seeds 1-3 (the test: 1): HP error 2.1-2.7 % (EKF, UKF; gain
+    0.997-1.000), 30-36 % for the linear KF (11-15 times the EKF's), 6.2-8.2 % for the dual
+    observer, whose mass goes from 492 kg to 390-394 kg; the UKF's and the EKF's HP profiles
+    differ by 1 % of either's HP error."""
     est = {
         "ekf": {"road_estimator": 3, "mass_estimator": 0, **NONLINEAR},
         "ukf": {"road_estimator": 5, "mass_estimator": 0, **NONLINEAR},
@@ -24,15 +29,17 @@ def test_observers_told_the_maps_track_the_road_and_the_mass_through_the_fmus(di
     }
     r = loop(dist, est, 410.0, 8.0, plant=NONLINEAR)
     t, truth = r["time"], r["road.road_height"]
-    s = {n: road_scores(t, r[f"{n}.road_height_est"], truth, warmup=3.0) for n in est}
+    s = {n: road_scores(t, r[f"{n}.road_height_est"], truth, warmup=3.0, distance=V * t) for n in est}
     for n in ("ekf", "ukf"):
-        assert s[n]["err_std_hp_pct"] < 5.0 and 0.9 < s[n]["gain_hp"] < 1.1, (n, s[n])
+        assert s[n]["err_std_hp_pct"] < 5.0 and 0.95 < s[n]["gain_hp"] < 1.05, (n, s[n])
         assert (r[f"{n}.sprung_mass_est"] == 410.0).all()  # mass_estimator 0: the nominal mass
     # the linearisation cannot explain the asymmetric damper's mean force (pack-down)
-    assert s["kf_linear"]["err_std_hp_pct"] > 3 * s["ekf"]["err_std_hp_pct"], s
-    # the EKF and the UKF differ by less than either's error from the truth
-    between = road_scores(t, r["ukf.road_height_est"], r["ekf.road_height_est"], warmup=3.0)["rmse_hp_mm"]
-    assert between < 0.5 * min(s["ekf"]["rmse_hp_mm"], s["ukf"]["rmse_hp_mm"]), (between, s)
+    assert s["kf_linear"]["err_std_hp_pct"] > 5 * s["ekf"]["err_std_hp_pct"], s
+    # the EKF and the UKF differ by much less than either's error from the truth
+    h = float(np.median(np.diff(t)))
+    d = (highpass(r["ukf.road_height_est"], h) - highpass(r["ekf.road_height_est"], h))[t >= t[0] + 3.0]
+    between = 1e3 * np.sqrt(np.mean(d ** 2))  # mm
+    assert between < 0.1 * min(s["ekf"]["rmse_hp_mm"], s["ukf"]["rmse_hp_mm"]), (between, s)
     # the dual observer, started 20 % heavy, moves its mass most of the way to the truth
     m = r["dual.sprung_mass_est"]
     assert m[0] > 480.0 and abs(m[-1] / 410.0 - 1) < 0.08, (m[0], m[-1])

@@ -16,7 +16,7 @@ import pytest
 
 from suspension_estimation.suspension_fmi.contract import SUSPENSION_ESTIMATOR
 from suspension_estimation.harness.cosim import CoSimulation, System
-from suspension_estimation.harness.metrics import highpass, road_scores
+from suspension_estimation.harness.metrics import highpass, reference_profile, road_scores
 
 H = 1e-3  # s
 V = 11.1111  # m/s, 40 km/h
@@ -58,7 +58,7 @@ def drive(dist):
     connections = [("vehicle_speed", "road.vehicle_speed"), ("road.road_height", "plant.road_height")]
     with CoSimulation(System(components, connections), parameters={"road.seed": SEED, "plant.noise_seed": SEED},
                       inputs={"vehicle_speed": V},
-                      record=["road.road_height"] + [f"plant.{w}" for w in WIRES]) as sim:
+                      record=["road.road_height", "road.distance"] + [f"plant.{w}" for w in WIRES]) as sim:
         res = sim.run(T, H)
     meas = {w: np.array(res[f"plant.{w}"][1:]) for w in WIRES}  # the value of step k at index k
     cache: dict = {}
@@ -73,8 +73,9 @@ def drive(dist):
             cache[channel, kind] = _estimator(dist, m)
         return cache[channel, kind]
 
-    return {"time": res["time"], "truth": res["road.road_height"], "meas": meas,
-            "clean": _estimator(dist, meas), "burst": burst}
+    # the truth of road_height_est: the profile of the elevation (harness.metrics.reference_profile)
+    truth = reference_profile(res["road.distance"], res["road.road_height"])
+    return {"time": res["time"], "truth": truth, "meas": meas, "clean": _estimator(dist, meas), "burst": burst}
 
 
 def test_replay_is_the_closed_loop(dist, drive):
@@ -127,7 +128,8 @@ def test_in_band_road_error_is_back_within_1s(drive, channel, kind):
     of the disturbed run is the undisturbed error plus that difference, so by the triangle
     inequality its RMS is then within +-10 % of the undisturbed run's: "returns to the undisturbed
     level" with no luck of cancellation. Bounding the difference rather than comparing two error
-    levels also fails a burst that leaves a different error of the same size."""
+    levels also fails a burst that leaves a different error of the same size. Measured: 2.3 %
+    (body channel) and 2.5 % (wheel channel) of the undisturbed 0.15 mm."""
     ratio = _recovery(drive, channel, kind, hp=True)
     assert ratio <= 0.10, f"HP deviation {ratio:.1%} of the undisturbed HP error 1-2 s after the burst"
 
@@ -136,8 +138,9 @@ def test_in_band_road_error_is_back_within_1s(drive, channel, kind):
 def test_raw_road_estimate_is_back_within_1s(drive, channel, kind):
     """The same criterion on the raw road estimate (what a user reads from road_height_est): the
     RMS deviation from the undisturbed estimate over 1-2 s after the burst <= 10 % of the
-    undisturbed raw road error RMS (which, at 15-17 mm here, is mostly the unobservable slow drift
-    of the common mode, so this also bounds a kick the burst gives that drift)."""
+    undisturbed raw error RMS against the profile (0.16 mm here, the profile's own band: a kick
+    the burst gives the filter's level would have to leave the band within 1 s). Measured: 2.7 %
+    (body channel) and 4.1 % (wheel channel)."""
     ratio = _recovery(drive, channel, kind, hp=False)
     assert ratio <= 0.10, f"raw deviation {ratio:.1%} of the undisturbed raw error 1-2 s after the burst"
 
@@ -146,8 +149,10 @@ def test_raw_road_estimate_is_back_within_1s(drive, channel, kind):
 def test_frozen_sensor_is_flagged(drive, dist, channel):
     """A sensor stuck at its value of t = 3 s for the rest of the run: status 0 before; after
     ``frozen_time`` (50 ms) of bit-identical values, status 1 at every step, the outputs finite,
-    the road estimate in band still within 20 % of the road (the other channels carry it) and
-    nis finite and non-negative (it keeps the last update's value when nothing is used)."""
+    the road estimate in band still within 20 % of the road (the other channels carry it:
+    HP error 2.8 / 11.4 / 2.2 % of the HP profile after 3.5 s with the body / wheel /
+    deflection channel frozen) and nis finite and non-negative (it keeps the last update's
+    value when nothing is used)."""
     m = {w: v.copy() for w, v in drive["meas"].items()}
     m[channel][K0:] = m[channel][K0]
     res = _estimator(dist, m)
@@ -159,7 +164,7 @@ def test_frozen_sensor_is_flagged(drive, dist, channel):
     assert np.all(res["e.nis"] >= 0)
     t = drive["time"]
     sel = t > 3.5
-    hp_err = highpass(res["e.road_height_est"], H) - highpass(drive["truth"], H)
+    hp_err = highpass(res["e.road_height_est"], H) - highpass(drive["truth"], H)  # truth: the profile
     assert np.std(hp_err[sel]) < 0.2 * np.std(highpass(drive["truth"], H)[sel])
 
 
@@ -167,19 +172,23 @@ def test_changed_step_size_stays_within_20pct_of_fixed_step(dist):
     """Closed loop road -> plant -> estimator (default parameters) with the communication step
     1 ms for 4 s, 5 ms for 4 s, 2 ms for 4 s, against the same loop at a fixed 1 ms: the HP road
     error-STD % after a 3 s warm-up within 20 % of the fixed-step run's. Both are scored on the
-    10 ms grid common to every segment (the 5 ms part has no samples in between)."""
-    def drive_steps(steps: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    10 ms grid common to every segment (the 5 ms part has no samples in between), against the
+    profile of the road at the recorded distances. Road and noise seeds 1-3: 1.75-2.02 % against
+    1.86-2.04 % (ratio 0.94-1.02)."""
+    def scores(steps: np.ndarray) -> dict[str, float]:
         with CoSimulation(_closed_loop_system(dist), parameters={"road.seed": SEED, "plant.noise_seed": SEED},
-                          inputs={"vehicle_speed": V}, record=["road.road_height", "e.road_height_est"]) as sim:
+                          inputs={"vehicle_speed": V},
+                          record=["road.road_height", "road.distance", "e.road_height_est"]) as sim:
             res = sim.run(float(np.sum(steps)), steps)
         t = res["time"]
         grid = np.arange(0.01, t[-1] - 1e-9, 0.01)
         idx = np.searchsorted(t, grid - 1e-9)
         assert np.allclose(t[idx], grid, atol=1e-9)
-        return grid, res["e.road_height_est"][idx], res["road.road_height"][idx]
+        return road_scores(grid, res["e.road_height_est"][idx], res["road.road_height"][idx], warmup=3.0,
+                           distance=res["road.distance"][idx])
 
     fixed = np.full(12000, 1e-3)
     varying = np.concatenate([np.full(4000, 1e-3), np.full(800, 5e-3), np.full(2000, 2e-3)])
-    e_fixed = road_scores(*drive_steps(fixed), warmup=3.0)["err_std_hp_pct"]
-    e_var = road_scores(*drive_steps(varying), warmup=3.0)["err_std_hp_pct"]
+    e_fixed = scores(fixed)["err_std_hp_pct"]
+    e_var = scores(varying)["err_std_hp_pct"]
     assert e_var <= 1.2 * e_fixed, (e_fixed, e_var)

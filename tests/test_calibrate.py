@@ -111,7 +111,10 @@ def test_the_vehicle_file_has_the_contract_names_inside_their_ranges(calibrated)
 
 def test_the_estimator_fmu_told_the_file_estimates_as_if_told_the_truth(calibrated, dist):
     """Another road (ISO D, seed 3): the FMU told the calibrated file against the FMU told the
-    plant's vehicle and the FMU told the contract's nominal one, fed the same measurements."""
+    plant's vehicle and the FMU told the contract's nominal one, fed the same measurements; HP
+    error against the profile of the road (distance SPEED t). Measured over road seeds 1-4 (noise
+    seed 30 + seed; the test: 3): calibrated 1.93-2.23 %, 1.0025-1.0033 times the exact
+    vehicle's; nominal 7.7-9.2 %, 3.6-4.5 times."""
     values, _ = calibrated
     road = SyntheticRoad(iso8608.class_psd_n0(4), seed=3)
     n = int(round(12.0 / H))
@@ -129,9 +132,10 @@ def test_the_estimator_fmu_told_the_file_estimates_as_if_told_the_truth(calibrat
                 road_est[k] = est.get("road_height_est")
         finally:
             est.close()
-        hp[name] = road_scores(np.arange(1, n + 1) * H, road_est, truth, warmup=4.0)["err_std_hp_pct"]
-    assert hp["calibrated"] < 1.1 * hp["exact"], hp  # measured 2.65 against 2.64 %
-    assert hp["nominal"] > 1.3 * hp["exact"], hp  # what the calibration buys: measured 8.9 %
+        t = np.arange(1, n + 1) * H
+        hp[name] = road_scores(t, road_est, truth, warmup=4.0, distance=SPEED * t)["err_std_hp_pct"]
+    assert hp["calibrated"] < 1.05 * hp["exact"], hp  # measured 1.933 against 1.928 %
+    assert hp["nominal"] > 2.0 * hp["exact"], hp  # what the calibration buys: measured 8.7 %
 
 
 def test_a_misplaced_profile_and_a_wrong_speed_are_found(section, tmp_path, capsys):

@@ -1,40 +1,16 @@
-"""No step in road_height_est at a class change or a re-run of the start-height filter, and class
-decisions with hysteresis (estimators/road_class.py, estimators/start_offset.py)."""
+"""No step in road_height_est at a class change, and class decisions with hysteresis
+(estimators/road_class.py)."""
 from __future__ import annotations
-
-import math
 
 import numpy as np
 
-from suspension_estimation.estimators.model import reference_step_response
 from suspension_estimation.estimators.road_class import RoadClassifier
-from suspension_estimation.estimators.start_offset import BLEND_TIME, SAMPLE_INTERVAL, StartOffset
 from suspension_estimation.harness.cosim import CoSimulation, System
 from suspension_estimation.harness.testroads import add_sag, joined_iso, write_profile
 from suspension_estimation.plant import iso8608
 from suspension_estimation.plant.road import SyntheticRoad
 
 TOL = 0.5e-3  # m: largest allowed step of the estimate beyond the road's own change
-
-
-def test_rerun_of_the_start_filter_is_blended_in():
-    """x drifts as on a sag curve; the assumed class goes from A to C (sigma_0 x 4) after 6 s: the re-run moves
-    the filter's estimate of z_0 by millimetres, the reported b^ moves by at most 1 % of that per
-    sample and ends at the re-run's estimate."""
-    f = StartOffset(iso8608.N_MIN, 0.01, 0.006)
-    v = 40 / 3.6
-    t = SAMPLE_INTERVAL * np.arange(1, 1201)
-    x = -0.2 * (1 - np.cos(2 * np.pi * np.minimum(t, 27.0) / 27.0))  # a 0.4 m sag over 300 m
-    b, filt = [], []
-    for k, tk in enumerate(t):
-        f.add(tk, x[k], v, 1e-6, reference_step_response(tk), 0.006 if tk < 6.0 else 0.024)
-        b.append(f.b)
-        filt.append(f.x[2])
-        if abs(tk - 6.0) < 1e-9:
-            change = f.blend
-    assert abs(change) > 1e-3  # the re-run alone would have stepped b^ by this much
-    assert np.max(np.abs(np.diff(b))) < 0.02 * abs(change) + 1e-9 + np.max(np.abs(np.diff(filt)))
-    assert abs(b[-1] - filt[-1]) < abs(change) * math.exp(-(t[-1] - 6.0) / BLEND_TIME) * 1.01
 
 
 def _boundary_profile(length: float, seed: int) -> np.ndarray:

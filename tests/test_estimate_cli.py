@@ -98,17 +98,19 @@ def test_estimates_road_and_iri_by_distance(runs, logs, h):
     log = logs[h]
     assert sorted(p.name for p in out.iterdir()) == ["estimates.csv", "iri.csv", "report.png"]
     est, iri = read_csv(out / "estimates.csv"), read_csv(out / "iri.csv")
-    assert est.dtype.names == ("time", "distance", "road_height_est", "road_height_std", "road_profile_est",
-                               "road_profile_std", "sprung_mass_est", "mass_std", "road_class_est", "status")
+    assert est.dtype.names == ("time", "distance", "road_height_est", "road_height_std", "sprung_mass_est",
+                               "mass_std", "road_class_est", "status")
     assert iri.dtype.names == ("start_m", "end_m", "iri_m_per_km")
     assert np.allclose(est["time"], log["time"], atol=1e-9) and np.allclose(est["distance"], log["distance"])
     assert (out / "report.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
-    # the road, scored as the project scores it: against what road_height_est estimates
+    # the road, scored as the project scores it: against what road_height_est estimates, the
+    # profile of the true road at the distance travelled (metrics.reference_profile). Seeds 1, 2,
+    # 3, 5 at 1 and 5 ms: HP error 1.40-1.86 %, raw 1.08-3.92 %, 2-sigma coverage 0.955-1.000
     t = est["time"]
     s = metrics.road_scores(t, est["road_height_est"], log["road"], est["road_height_std"],
-                            warmup=metrics.warmup_for(t))
-    assert s["err_std_hp_pct"] < 10 and s["err_std_raw_pct"] < 20 and s["coverage_2sigma"] > 0.9, s
+                            warmup=metrics.warmup_for(t), distance=log["distance"])
+    assert s["err_std_hp_pct"] < 4 and s["err_std_raw_pct"] < 8 and s["coverage_2sigma"] > 0.9, s
     assert np.all(est["status"] == 0)
     assert abs(est["sprung_mass_est"][-1] - 410) < 0.05 * 410
 
@@ -290,9 +292,10 @@ def test_refused_mdf_files(capsys, dist, logs, tmp_path):
 
 
 def test_smooth_adds_the_smoothed_road_with_an_honest_std(capsys, dist, runs, logs, tmp_path):
-    """--smooth on the 1 ms log (with its stop): the causal columns unchanged, the smoothed road's
-    HP error well below the causal one's, its ±2σ covering the error it has against what it
-    estimates, and the IRI of the smoothed profile."""
+    """--smooth on the 1 ms log (with its stop): the causal columns unchanged, the smoothed
+    profile's HP error well below the causal one's (seeds 1, 2, 3, 5: 0.29-0.35 of it), its ±2σ
+    (the smoothed road's std before the profile's high-pass, an upper bound) covering the error it
+    has against what it estimates (1.000), and the IRI of the smoothed profile."""
     log = logs[0.001]
     code, text, err = estimate(capsys, dist, write_log(tmp_path / "log.csv", log), tmp_path / "out", "--smooth")
     assert code == 0, err
@@ -303,11 +306,11 @@ def test_smooth_adds_the_smoothed_road_with_an_honest_std(capsys, dist, runs, lo
         assert np.array_equal(est[k], plain[k]), k
     t = est["time"]
     causal = metrics.road_scores(t, est["road_height_est"], log["road"], est["road_height_std"],
-                                 warmup=metrics.warmup_for(t))
+                                 warmup=metrics.warmup_for(t), distance=log["distance"])
     smooth = metrics.road_scores(t, est["road_height_smooth"], log["road"], est["road_height_smooth_std"],
-                                 warmup=metrics.warmup_for(t))
-    assert smooth["err_std_hp_pct"] < 0.85 * causal["err_std_hp_pct"], (smooth, causal)
-    assert 0.9 <= smooth["coverage_2sigma"] <= 1.0, smooth
+                                 warmup=metrics.warmup_for(t), distance=log["distance"])
+    assert smooth["err_std_hp_pct"] < 0.6 * causal["err_std_hp_pct"], (smooth, causal)
+    assert smooth["coverage_2sigma"] >= 0.95, smooth
     truth = true_iri(5, log["distance"][-1])
     iri = read_csv(tmp_path / "out" / "iri.csv")["iri_m_per_km"]
     assert np.all(np.abs(iri / truth - 1) < 0.15), (iri, truth)

@@ -11,7 +11,7 @@ from fmpy.fmi1 import FMICallException
 from fmu_driver import Driven
 from suspension_estimation.suspension_fmi.contract import SUSPENSION_ESTIMATOR
 from suspension_estimation.harness.cosim import CoSimulation, System
-from suspension_estimation.harness.metrics import road_scores
+from suspension_estimation.harness.metrics import reference_profile, road_scores
 
 V = 11.1111  # m/s, 40 km/h
 OUTPUTS = [v.name for v in SUSPENSION_ESTIMATOR if v.causality == "output"]
@@ -31,21 +31,25 @@ def loop(dist, estimators: dict[str, dict], true_mass: float, stop: float, road_
                   **{f"plant.{k}": v for k, v in (plant or {}).items()}}
     for name, params in estimators.items():
         parameters.update({f"{name}.{k}": v for k, v in params.items()})
-    record = ["road.road_height", "plant.z_s"] + [f"{n}.{o}" for n in estimators for o in OUTPUTS]
+    record = ["road.road_height", "road.distance", "plant.z_s"] + [f"{n}.{o}" for n in estimators for o in OUTPUTS]
     with CoSimulation(System(components, connections), parameters=parameters,
                       inputs={"vehicle_speed": V, "plant.sprung_mass": true_mass}, record=record) as sim:
         return sim.run(stop, step)
 
 
 def test_joint_road_and_mass_recovers_a_heavier_body(dist):
+    """590 kg told 410 kg, ISO C at 40 km/h, 12 s: the joint estimator finds the mass, and its road
+    profile's HP error (against reference_profile) is under half that of the KF that keeps 410 kg
+    (seeds 1-4: 2.2-2.5 % against 9.9-11.3 %, 0.21-0.24 of it; in-band gain 1.005-1.007)."""
     res = loop(dist, {"kf": {"mass_estimator": 0}, "joint": {}}, true_mass=590.0, stop=12.0)
     t = res["time"]
     mass = res["joint.sprung_mass_est"]
     assert abs(mass[t > 2.0] / 590.0 - 1).max() < 0.05
     assert np.all(res["kf.sprung_mass_est"] == 410.0)
-    kf = road_scores(t, res["kf.road_height_est"], res["road.road_height"], warmup=4.0)
-    joint = road_scores(t, res["joint.road_height_est"], res["road.road_height"], warmup=4.0)
-    # the filter that keeps 410 kg mis-scales the road; the joint one does not
+    kf = road_scores(t, res["kf.road_height_est"], res["road.road_height"], warmup=4.0, distance=res["road.distance"])
+    joint = road_scores(t, res["joint.road_height_est"], res["road.road_height"], warmup=4.0,
+                        distance=res["road.distance"])
+    # the filter that keeps 410 kg misses the road in band (its in-band gain stays ~1); the joint one does not
     assert joint["err_std_hp_pct"] < 0.5 * kf["err_std_hp_pct"]
     assert 0.85 < joint["gain_hp"] < 1.15
     for name in REAL_OUTPUTS:
@@ -53,10 +57,24 @@ def test_joint_road_and_mass_recovers_a_heavier_body(dist):
 
 
 def test_outputs_are_consistent_with_each_other(dist):
+    """The deflections are differences of the states; road_height_est is the profile of the
+    filter's road z_u_est - tire_deflection_est made as harness.smoothing.profile_of makes it (freed
+    of the reference, high-passed in distance), but for the lag correction that z_u_est carries
+    (steady_state.reference_lag): rms difference under 0.5 % of the profile's rms (seeds 1-3:
+    0.04-0.07 %; the filter's road itself differs from it by 67-216 %)."""
+    from suspension_estimation.estimators.suspension import EstimatorConfig
+    from suspension_estimation.harness.smoothing import profile_of
+
     res = loop(dist, {"e": {"road_class": 3}}, true_mass=410.0, stop=3.0)
     e = {o: res[f"e.{o}"][1:] for o in OUTPUTS}
     assert np.allclose(e["susp_deflection_est"], e["z_s_est"] - e["z_u_est"], atol=1e-12)
-    assert np.allclose(e["tire_deflection_est"], e["z_u_est"] - e["road_height_est"], atol=1e-12)
+    cfg = EstimatorConfig(road_class=3)
+    rm = cfg.tuning.road_model
+    road = e["z_u_est"] - e["tire_deflection_est"]
+    profile = profile_of(road, np.full(len(road), V), 1e-3, cfg.profile_cutoff, cfg.tuning.standstill_speed,
+                         (rm.f_ref, rm.zeta_ref))
+    y = e["road_height_est"]
+    assert np.sqrt(np.mean((profile - y) ** 2)) < 5e-3 * np.sqrt(np.mean(y ** 2))
     assert np.all(e["road_height_std"] > 0) and np.all(e["nis"] >= 0)
     assert np.all(e["status"] == 0)
     assert np.all(e["road_class_est"] == 0)  # a 3 s run at 40 km/h is shorter than the class window
@@ -158,20 +176,24 @@ def test_bad_speed_is_refused_at_the_step(dist, speed):
 
 
 def test_a_changed_step_size_is_followed(dist):
-    """1 -> 5 -> 2 ms mid-run: the FMU re-discretises and keeps estimating the road."""
+    """1 -> 5 -> 2 ms mid-run: the FMU re-discretises and keeps estimating the road profile: in each
+    stretch the std of its error against reference_profile (its mean left out) under 0.15 of the
+    profile's std (the default road and seeds 1-3: 0.015-0.022, 0.033-0.037, 0.027-0.047)."""
     steps = np.concatenate([np.full(4000, 1e-3), np.full(1600, 5e-3), np.full(4000, 2e-3)])  # 20 s
     components = {"road": dist / "ISORoad.fmu", "plant": dist / "QuarterCar.fmu",
                   "e": dist / "SuspensionEstimator.fmu"}
     connections = [("vehicle_speed", "road.vehicle_speed"), ("vehicle_speed", "e.vehicle_speed"),
                    ("road.road_height", "plant.road_height")] + [(f"plant.{w}", f"e.{w}") for w in WIRES]
     with CoSimulation(System(components, connections), parameters={"plant.acc_sampling": 1},
-                      inputs={"vehicle_speed": V}, record=["road.road_height", "e.road_height_est"]) as sim:
+                      inputs={"vehicle_speed": V}, record=["road.road_height", "road.distance", "e.road_height_est"]
+                      ) as sim:
         res = sim.run(float(steps.sum()), steps)
     t = res["time"]
+    profile = reference_profile(res["road.distance"], res["road.road_height"])
     for lo, hi in ((2.0, 4.0), (6.0, 12.0), (14.0, 20.0)):
         part = (t >= lo) & (t <= hi)
-        err = res["e.road_height_est"][part] - res["road.road_height"][part]
-        assert np.std(err - err.mean()) < 0.5 * np.std(res["road.road_height"][part]), (lo, hi)
+        err = res["e.road_height_est"][part] - profile[part]
+        assert np.std(err - err.mean()) < 0.15 * np.std(profile[part]), (lo, hi)
 
 
 @pytest.mark.parametrize("seed", [1, 2])

@@ -1,4 +1,7 @@
-"""Plain-core tests of estimators/ and harness/metrics.py (no FMU). Loose, seed-robust bounds."""
+"""Plain-core tests of estimators/ and harness/metrics.py (no FMU). Loose, seed-robust bounds.
+
+road_height_est is the road profile (harness.metrics.reference_profile of the true elevation at the
+distance travelled, here V t): ``road_scores`` scores it against that profile."""
 from __future__ import annotations
 
 import math
@@ -170,29 +173,46 @@ def test_mass_step_tracked():
 
 # --- road estimation, end to end -----------------------------------------------------------------
 def test_kf_road_estimate_iso_c():
+    """ISO C, 40 km/h, 14 s, the default estimator at the true mass, scored after 4 s. Measured
+    over seeds 1-8 (the test: 4): HP error 1.6-2.1 %, gain 1.002-1.007, raw error against the
+    profile 0.14-0.22 mm rms (profile 13-16 mm rms); road_height_std 0.66 mm with the default
+    calibration allowance (2-sigma coverage 1.0), 0.16 mm without it (calibration_gain_std =
+    calibration_delay_std = 0: the filter alone on these ideal sensors), coverage 0.87-0.98."""
     t, meas, truth, _ = simulate(T=14.0, seed=4)
     _, out = run(meas, mass_estimator=0, road_class=3)
-    sc = road_scores(t, out["road_height_est"], truth[:, 4], out["road_height_std"], warmup=4.0)
-    assert sc["err_std_hp_pct"] < 15.0
-    assert 0.85 < sc["gain_hp"] < 1.15
+    sc = road_scores(t, out["road_height_est"], truth[:, 4], out["road_height_std"], warmup=4.0, distance=40 / 3.6 * t)
+    assert sc["err_std_hp_pct"] < 3.0, sc
+    assert 0.97 < sc["gain_hp"] < 1.03, sc
+    assert sc["rmse_raw_mm"] < 0.4, sc
+    assert sc["coverage_2sigma"] > 0.95, sc
+    _, ideal = run(meas, mass_estimator=0, road_class=3, calibration_gain_std=0.0, calibration_delay_std=0.0)
+    np.testing.assert_array_equal(ideal["road_height_est"], out["road_height_est"])  # the std alone changes
+    assert np.all(ideal["road_height_std"] < out["road_height_std"])
+    cov = road_scores(t, ideal["road_height_est"], truth[:, 4], ideal["road_height_std"], warmup=4.0,
+                      distance=40 / 3.6 * t)["coverage_2sigma"]
+    assert 0.8 < cov < 1.0, cov
 
 
 def test_joint_estimation_recovers_wrong_mass():
+    """True 590 kg, told 410 kg. Measured over seeds 1-8 (the test: 5): HP error 8.9-11.8 % at
+    410 kg, 2.0-2.5 % joint (ratio 0.21-0.26); final mass 587.7-593.1 kg."""
     t, meas, truth, _ = simulate(T=14.0, seed=5, mass=590.0)
     _, kf = run(meas, mass_estimator=0, road_class=3)
     _, joint = run(meas, road_class=3)
-    e_kf = road_scores(t, kf["road_height_est"], truth[:, 4], warmup=4.0)["err_std_hp_pct"]
-    e_joint = road_scores(t, joint["road_height_est"], truth[:, 4], warmup=4.0)["err_std_hp_pct"]
+    e_kf = road_scores(t, kf["road_height_est"], truth[:, 4], warmup=4.0, distance=40 / 3.6 * t)["err_std_hp_pct"]
+    e_joint = road_scores(t, joint["road_height_est"], truth[:, 4], warmup=4.0, distance=40 / 3.6 * t)["err_std_hp_pct"]
     assert e_joint < 0.5 * e_kf
     assert joint["sprung_mass_est"][-1] == pytest.approx(590.0, rel=0.03)
 
 
 def test_mme_kf_runs_and_stays_finite():
+    """MME&KF, 6 s scored after 2 s: HP error 11.9-13.5 %, gain 0.96-0.99 over seeds 1-8 (the
+    test: 6)."""
     t, meas, truth, _ = simulate(T=6.0, seed=6)
     _, out = run(meas, road_estimator=1, mass_estimator=0, road_class=3)
     assert np.all(np.isfinite(out["road_height_est"]))
-    sc = road_scores(t, out["road_height_est"], truth[:, 4], warmup=2.0)
-    assert sc["err_std_hp_pct"] < 50.0
+    sc = road_scores(t, out["road_height_est"], truth[:, 4], warmup=2.0, distance=40 / 3.6 * t)
+    assert sc["err_std_hp_pct"] < 20.0 and 0.9 < sc["gain_hp"] < 1.1, sc
 
 
 # --- ISO class ---------------------------------------------------------------------------------
@@ -308,9 +328,10 @@ def test_frozen_sensor_flagged():
 
 
 def test_changing_step_size_rediscretises_accurately():
-    # plant and estimator at 1 ms, then 5 ms, then 2 ms; HP road error within 20 % of the
-    # fixed-1-ms run over the same stretch of road (the 5 ms part is sampled more coarsely, so
-    # both are scored on the 10 ms grid common to all segments)
+    """Plant and estimator at 1 ms, then 5 ms, then 2 ms: HP road error within 30 % of the
+    fixed-1-ms run over the same stretch of road (the 5 ms part is sampled more coarsely, so
+    both are scored on the 10 ms grid common to all segments). Measured over road seeds 1-5 and
+    10 (the test: 10): 1.71-2.01 % fixed, ratio 1.00-1.17 (1.05 on seed 10)."""
     speed, T = 40 / 3.6, 12.0
     road = SyntheticRoad(iso8608.class_psd_n0(3), seed=10)
 
@@ -333,9 +354,9 @@ def test_changing_step_size_rediscretises_accurately():
     varying = [1e-3] * 4000 + [5e-3] * 800 + [2e-3] * 2000
     g1, z1, r1 = drive(fixed)
     g2, z2, r2 = drive(varying)
-    e1 = road_scores(g1, z1, r1, warmup=3.0)["err_std_hp_pct"]
-    e2 = road_scores(g2, z2, r2, warmup=3.0)["err_std_hp_pct"]
-    assert e2 < 1.2 * e1 + 1.0, (e1, e2)
+    e1 = road_scores(g1, z1, r1, warmup=3.0, distance=speed * g1)["err_std_hp_pct"]
+    e2 = road_scores(g2, z2, r2, warmup=3.0, distance=speed * g2)["err_std_hp_pct"]
+    assert e2 < 1.3 * e1, (e1, e2)
 
 
 # --- steady state (the filter must be good AFTER its covariance has settled) -------------------
@@ -365,9 +386,10 @@ def test_steady_state_filter_keeps_the_band_and_is_honest():
 
 @pytest.mark.parametrize("acc_sampling", [0, 1])
 def test_raw_error_variance_is_the_spectral_error(acc_sampling):
-    """raw_error_variance (Lyapunov sensor part + vectorised road integral, what the estimator
-    reports) equals analyse's error spectrum integrated down to 1e-5 Hz (an independent loop
-    over 20000 frequencies) within 1 %, for point-sampled and averaged accelerations; it grows
+    """raw_error_variance (Lyapunov sensor part + vectorised road integral; the estimator no
+    longer reports it: road_height_std is the error in the profile's band) equals analyse's
+    error spectrum integrated down to 1e-5 Hz (an independent loop over 20000 frequencies)
+    within 1 %, for point-sampled and averaged accelerations; it grows
     with the road class and stays below the filter's own P[z_r, z_r], which also carries the
     model noise."""
     from suspension_estimation.estimators.kalman import stationary_covariance
@@ -414,22 +436,23 @@ def test_covariance_converges_and_stays_spd_over_a_long_run():
 
 # --- wrong starting mass: re-filtering after the mass rebuild --------------------------------------
 def test_wrong_start_mass_refiltered_raw_error_and_coverage():
-    # true 590 kg, model starts at 410: the ~0.3 s before the first mass rebuild used to push the
-    # unobservable common mode off (raw error ~350 %, 2-sigma coverage ~0.02 over 60 s); the
-    # re-filter from the start with the new model removes it. Loose, seed-robust bounds.
-    # (the exact-model KF: the force-error state of road_estimator 2 absorbs the wrong mass's
-    # force mismatch, so without re-filtering it is barely pushed off)
+    """True 590 kg, model starts at 410: the ~0.3 s before the first mass rebuild push the
+    unobservable common mode off, and what the profile keeps of that is a raw error of 1.7-4.5 mm
+    rms (2-sigma coverage 0.53-0.65) without re-filtering; the re-filter from the start with the
+    new model removes it: 0.19-0.61 mm (the true-mass KF 0.19-0.24 mm), coverage 0.92-1.0, HP
+    error within 3 % of the true-mass KF's. Measured over seeds 1-8 (the test: 5, 0.20 / 2.9 /
+    0.20 mm). (The exact-model KF: the force-error state of road_estimator 2 absorbs the wrong
+    mass's force mismatch, so without re-filtering it is barely pushed off.)"""
     t, meas, truth, _ = simulate(T=14.0, seed=5, mass=590.0)
     est, joint = run(meas, road_class=3, road_estimator=0)
     _, old = run(meas, road_class=3, refilter_span=0.0, road_estimator=0)
     _, true_kf = run(meas, road_class=3, mass_estimator=0, m_s_nominal=590.0, road_estimator=0)
-    # (the plant starts at rest at 0, not on the road's first value: start = 0)
-    sc = {k: road_scores(t, o["road_height_est"], truth[:, 4], o["road_height_std"], warmup=4.0, start=0.0)
+    sc = {k: road_scores(t, o["road_height_est"], truth[:, 4], o["road_height_std"], warmup=4.0, distance=40 / 3.6 * t)
           for k, o in (("joint", joint), ("old", old), ("true", true_kf))}
     assert est.refilters >= 1
-    assert sc["joint"]["err_std_raw_pct"] < 1.5 * sc["true"]["err_std_raw_pct"] + 5.0, sc
-    assert sc["old"]["err_std_raw_pct"] > 2.0 * sc["joint"]["err_std_raw_pct"], sc
-    assert sc["joint"]["coverage_2sigma"] > 0.85, sc
+    assert sc["joint"]["rmse_raw_mm"] < 2.0 * sc["true"]["rmse_raw_mm"] + 0.5, sc
+    assert sc["old"]["rmse_raw_mm"] > 2.0 * sc["joint"]["rmse_raw_mm"], sc
+    assert sc["joint"]["coverage_2sigma"] > 0.85 > sc["old"]["coverage_2sigma"], sc
     assert sc["joint"]["err_std_hp_pct"] < 1.1 * sc["true"]["err_std_hp_pct"], sc
 
 
@@ -458,6 +481,9 @@ def test_averaged_measurement_model_matches_plant_exactly(h):
 
 
 def test_averaged_sensor_at_10ms_matched_beats_point_model():
+    """Accelerations averaged over 10 ms steps, 40 s scored after 10 s: the matched model
+    (acc_sampling 1) against the point-sample one. Measured over road seeds 1-5 and 11 (the test:
+    11): HP error 1.8-2.2 % matched, 9.6-10.9 % point (ratio 0.17-0.21)."""
     speed, h, T = 40 / 3.6, 1e-2, 40.0
     road = SyntheticRoad(iso8608.class_psd_n0(3), seed=11)
     car = QuarterCar(DEFAULT_VEHICLE, SensorNoise(), noise_seed=111, acc_sampling=1)
@@ -471,6 +497,6 @@ def test_averaged_sensor_at_10ms_matched_beats_point_model():
     for acc in (0, 1):
         _, out = run(meas, speed=speed, h=h, road_class=3, mass_estimator=0, acc_sampling=acc)
         assert np.all(np.isfinite(out["road_height_est"]))
-        hp[acc] = road_scores(t, out["road_height_est"], r, warmup=10.0)["err_std_hp_pct"]
-    assert hp[1] < 0.8 * hp[0], hp
-    assert hp[1] < 10.0, hp
+        hp[acc] = road_scores(t, out["road_height_est"], r, warmup=10.0, distance=speed * t)["err_std_hp_pct"]
+    assert hp[1] < 0.4 * hp[0], hp
+    assert hp[1] < 3.5, hp

@@ -14,6 +14,7 @@ from suspension_estimation.estimators.imm import transition_matrix
 from suspension_estimation.estimators.imm_filter import P_START
 from suspension_estimation.estimators.model import DiscreteModel, RoadModel
 from suspension_estimation.estimators.suspension import SuspensionEstimator
+from suspension_estimation.harness.metrics import reference_profile
 from suspension_estimation.plant import iso8608
 from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE
 from suspension_estimation.harness.cosim import CoSimulation, System
@@ -40,8 +41,10 @@ def _bank_data(masses, gd, n_hi, steps, seed=11):
 def test_imm_estimator_equals_filterpy_imm_on_the_same_data():
     """SuspensionEstimator with mass_estimator 2 (paper 002's bank: 5 models 300..500 kg; stay
     0.995) and filterpy's IMMEstimator of 5 KalmanFilters built from the same discretised models, on data of the 400 kg
-    sub-model: road, body and mass (the mean of sum_i mu_i m_i over the last imm_window s) equal
-    to 1e-9 of their scale at every step. The sub-models'
+    sub-model: road (the filter's, z_u_est - tire_deflection_est), body and mass (the mean of
+    sum_i mu_i m_i over the last imm_window s) equal to 1e-9 of their scale at every step, and
+    road_height_est the profile of filterpy's road (high-passed in distance, no reference taken
+    off: the IMM is a filter of the registry). The sub-models'
     road here is ISO C with n_hi 3 1/m: with the default (ISO F, 30 1/m) the first S has a
     condition of ~1e11 and scipy's logpdf inside filterpy returns likelihoods at the floor
     (2.2e-308) while ours stay within 1e-13 of exact arithmetic (docs/imm.md)."""
@@ -60,7 +63,7 @@ def test_imm_estimator_equals_filterpy_imm_on_the_same_data():
                               imm_models=5, imm_stay=0.995, road_class=3, q_class_min=3, imm_road_n_hi=3.0,
                               m_s_nominal=float(DEFAULT_VEHICLE.m_s))
     worst = np.zeros(3)
-    ref_mass = []
+    ref_mass, ref_road, profile, scale = [], [], [], 0.0
     n = int(round(est.cfg.tuning.imm_window / H))  # the mass: mean over the last imm_window s
     for z in _bank_data(masses, gd, 3.0, 600):
         o = est.step(z[0], z[1], z[2], V, H)
@@ -69,10 +72,16 @@ def test_imm_estimator_equals_filterpy_imm_on_the_same_data():
         assert ref.likelihood.min() > 1e-300  # filterpy's likelihoods not at their floor
         xr = ref.x[:, 0]
         ref_mass.append(ref.mu @ masses)
-        worst = np.maximum(worst, [abs(o["road_height_est"] - xr[4]) / np.abs(xr).max(),
+        ref_road.append(xr[4])
+        profile.append(o["road_height_est"])
+        scale = max(scale, np.abs(xr).max())
+        worst = np.maximum(worst, [abs(o["z_u_est"] - o["tire_deflection_est"] - xr[4]) / np.abs(xr).max(),
                                    abs(o["z_s_est"] - xr[0]) / np.abs(xr).max(),
                                    abs(o["sprung_mass_est"] - np.mean(ref_mass[-n:])) / 400.0])
     assert worst.max() < 1e-9, worst
+    distance = V * H * np.arange(1, len(profile) + 1)
+    np.testing.assert_allclose(profile, reference_profile(distance, np.array(ref_road)), rtol=0, atol=1e-9 * scale)
+    assert np.std(profile) > 0.1 * np.std(ref_road)  # (the profile is not nothing: 600 steps are 6.7 m)
     assert ref.mu.max() > 0.9  # the comparison saw the probabilities settle on a model
 
 

@@ -1,5 +1,5 @@
 """The profile in a distance band (plant/profile_band.py, harness.metrics.reference_profile and
-band_scores): the filter against an independent solver, its gains, its independence of the
+road_scores): the filter against an independent solver, its gains, its independence of the
 sampling and of the speed, and a stop."""
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.signal import lsim
 
-from suspension_estimation.harness.metrics import band_scores, reference_profile
+from suspension_estimation.harness.metrics import reference_profile, road_scores
 from suspension_estimation.plant.profile_band import PROFILE_CUTOFF, DistanceHighpass, band_response, highpass_profile
 
 
@@ -81,16 +81,19 @@ def test_bad_input():
         highpass_profile(np.array([0.0, 1.0, 0.5]), np.zeros(3))
 
 
-def test_band_scores():
-    """The band removes a level, a grade and a slow drift of the estimate; white noise stays."""
+def test_road_scores_are_against_the_profile():
+    """metrics.road_scores scores against reference_profile of the truth: the profile itself scores
+    0; a level, a grade or a vertical curve added to the truth changes nothing; white noise on the
+    estimate stays."""
     t = np.arange(1, 40001) * 1e-3
     d = 20.0 * t
     truth = 0.02 * np.sin(2 * np.pi * d / 30.0) + 0.005 * np.sin(2 * np.pi * d / 7.0)
-    assert band_scores(t, d, truth, truth)["band_rmse_mm"] == 0.0
-    drift = 0.5 + 0.01 * d + 0.3 * np.sin(2 * np.pi * d / 5000.0)
-    assert band_scores(t, d, truth + drift, truth)["band_rmse_mm"] < 0.1
+    est = reference_profile(d, truth)
+    assert road_scores(t, est, truth, distance=d)["rmse_raw_mm"] == 0.0
+    curved = truth + 0.5 + 0.01 * d + 0.5 * d * d / 3000.0
+    assert road_scores(t, est, curved, distance=d)["rmse_raw_mm"] < 0.05  # the transient from rest, decaying
     noise = 1e-3 * np.random.default_rng(1).standard_normal(len(t))
-    assert band_scores(t, d, truth + noise, truth)["band_rmse_mm"] == pytest.approx(1.0, rel=0.05)
+    assert road_scores(t, est + noise, truth, distance=d)["rmse_raw_mm"] == pytest.approx(1.0, rel=0.05)
     assert np.allclose(reference_profile(d, truth), highpass_profile(d, truth))
 
 

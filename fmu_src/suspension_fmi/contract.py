@@ -312,13 +312,18 @@ SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
     Var("susp_deflection", "input", "Real", "m", 0.0, "measured suspension deflection z_s - z_u"),
     Var("vehicle_speed", "input", "Real", "m/s", 11.1111, "forward speed", _SPEED),
     Var("road_height_est", "output", "Real", "m", None,
-        "estimated road elevation relative to the start level and a long-wavelength reference: the elevation "
-        "above the start, high-passed at 0.01 Hz (second order, damping 0.707, in time; harness.metrics."
-        "reference_road); the absolute level and a grade from the start are not observable and not estimated"),
-    Var("road_velocity_est", "output", "Real", "m/s", None, "estimated time derivative of the road elevation"),
+        "estimated road profile as inertial profilers report it: the elevation under the tyre high-passed in "
+        "distance at profile_cutoff (third-order Butterworth, from 0 at the start; harness.metrics."
+        "reference_profile gives it from a true profile); it holds while the car stands (speed below 0.5 m/s). "
+        "The start level, grades, vertical curves and the drift of constant accelerometer biases fall outside "
+        "this band"),
+    Var("road_velocity_est", "output", "Real", "m/s", None,
+        "estimated time derivative of the road elevation (the filter's, relative to its long-wavelength reference)"),
     Var("road_height_std", "output", "Real", "m", None,
-        "1-sigma uncertainty of road_height_est against what it estimates (the referenced elevation, see "
-        "road_height_est), from the filter covariance and its steady-state error on a road of the online class"),
+        "1-sigma uncertainty of road_height_est against reference_profile: the filter covariance scaled to its "
+        "steady-state error in that band on a road of the online class, with the gain and delay errors of "
+        "calibration_gain_std and calibration_delay_std (road_estimator 0 and 2); for the other estimators their "
+        "raw road variance, an upper bound (docs/real-sensors.md)"),
     Var("z_s_est", "output", "Real", "m", None, "estimated sprung-mass displacement"),
     Var("v_s_est", "output", "Real", "m/s", None, "estimated sprung-mass velocity"),
     Var("z_u_est", "output", "Real", "m", None, "estimated unsprung-mass displacement"),
@@ -330,35 +335,22 @@ SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
         "standard error of sprung_mass_est (forgetting-factor RLS): small where the road excites the body, large "
         "on a smooth road (2 mass_std above 1 % of the mass: the road does not excite it enough for +-1 %); "
         "m_s_nominal (the prior) in the first second, 0 when the RLS does not estimate the mass"),
-    _iri_output("iri_est", "road_profile_est"),
+    _iri_output("iri_est", "road_height_est"),
     Var("road_class_est", "output", "Integer", None, None,
         "ISO 8608 class identified online (1..8 = A..H), 0 until enough road has been seen"),
     Var("nis", "output", "Real", "1", None, "normalised innovation squared of the last update (filter health)"),
     Var("status", "output", "Integer", None, None,
-        "0 = ok, 1 = last measurement rejected (non-finite or outlier), 2 = filter re-initialised, 3 = the "
-        "profile's long wavelengths (profile_cutoff/3 to profile_cutoff) exceed 4x what the road's ISO class "
-        "explains over the last 2 profile_cutoff of travel: a vertical curve, a start on a grade, or a drift from "
-        "a sensor bias; road_profile_std includes the excess (estimators/profile_check.py)"),
+        "0 = ok, 1 = last measurement rejected (non-finite or outlier), 2 = filter re-initialised"),
     # the known calibration of the sensors (plant/sensors.py); at the end, so that the value references stay
     *_sensor_params(plant=False),
     _real_param("profile_cutoff", "m", PROFILE_CUTOFF,
-                "long-wavelength cut-off of road_profile_est (default 300 ft, the usual cut-off of inertial "
+                "long-wavelength cut-off of road_height_est (default 300 ft, the usual cut-off of inertial "
                 "profilers: every wavelength the IRI responds to passes)", CUTOFF_RANGE),
-    Var("road_profile_est", "output", "Real", "m", None,
-        "estimated road profile as inertial profilers report it: the road elevation high-passed in distance at "
-        "profile_cutoff (third-order Butterworth; harness.metrics.reference_profile gives it from a true profile), "
-        "from 0 at the start; it holds while the car stands (speed below 0.5 m/s). The start level, grades, "
-        "vertical curves and the drift of constant accelerometer biases fall outside this band"),
-    Var("road_profile_std", "output", "Real", "m", None,
-        "1-sigma uncertainty of road_profile_est against reference_profile: the filter covariance scaled to its "
-        "steady-state error in that band on a road of the online class, with the gain and delay errors of "
-        "calibration_gain_std and calibration_delay_std (road_estimator 0 and 2); for the other estimators their "
-        "raw road variance, an upper bound (docs/real-sensors.md)"),
     _real_param("calibration_gain_std", "1", CALIBRATION_ALLOWANCE["calibration_gain_std"][0],
-                "1-sigma gain error (measured / true - 1) of each accelerometer that road_profile_std allows for; "
+                "1-sigma gain error (measured / true - 1) of each accelerometer that road_height_std allows for; "
                 "0 for accelerometers calibrated or told (acc_*_scale)", CALIBRATION_ALLOWANCE["calibration_gain_std"][1]),
     _real_param("calibration_delay_std", "s", CALIBRATION_ALLOWANCE["calibration_delay_std"][0],
-                "1-sigma delay (logger skew) of each channel that road_profile_std allows for; 0 for channels whose "
+                "1-sigma delay (logger skew) of each channel that road_height_std allows for; 0 for channels whose "
                 "skew is told (*_delay) or known to be none", CALIBRATION_ALLOWANCE["calibration_delay_std"][1]),
 )
 

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..metrics import highpass
+from ..metrics import highpass, reference_profile
 from .runner import (CLASS_LETTERS, NOMINAL_MASS, RunSpec, Study, mean_std, noise_params, simulate,
                      vehicle_params, verdict, worst)
 
@@ -97,13 +97,13 @@ def _run(spec: RunSpec, variant: str) -> dict:
         for m, n in true_kfs.items():
             params.update({f"{n}.{k}": v for k, v in {**common, "road_estimator": 0, "mass_estimator": 0,
                                                       "m_s_nominal": m}.items()})
-        record = ["ISORoad.road_height", "QuarterCar.sprung_mass"] + [
+        record = ["ISORoad.road_height", "ISORoad.distance", "QuarterCar.sprung_mass"] + [
             f"{n}.{v}" for n in names for v in ("road_height_est", "sprung_mass_est", "road_class_est")]
         inputs = {"vehicle_speed": Profile(starts, np.array(SPEEDS), "step"),
                   "QuarterCar.sprung_mass": Profile(starts, np.array(masses), "step")}
         r, timing = simulate(System(comps, conns, name="imm"), params, inputs, record, spec, spec.duration)
     t = r["time"]
-    truth_hp = highpass(r["ISORoad.road_height"], spec.step)
+    truth_hp = highpass(reference_profile(r["ISORoad.distance"], r["ISORoad.road_height"]), spec.step)
     out: dict = {"timing": timing, "variant": variant, "segment_s": seg, "estimators": {}}
     rows = {n: (lab, n) for n, (lab, _) in ESTIMATORS.items()}
     for n, (label, inst) in {**rows, TRUE_KF: (TRUE_KF, None)}.items():

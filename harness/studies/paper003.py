@@ -88,7 +88,7 @@ def run(spec: RunSpec) -> dict:
                 "m_s_nominal": f * spec.mass, **p}
         params.update({f"{n}.{k}": v for k, v in told.items()})
     plant = ("z_s", "v_s", "z_u", "v_u")
-    record = ["ISORoad.road_height"] + [f"QuarterCar.{v}" for v in plant] + [f"{n}.{o}" for n in names for o in EST_OUT]
+    record = ["ISORoad.road_height", "ISORoad.distance"] + [f"QuarterCar.{v}" for v in plant] + [f"{n}.{o}" for n in names for o in EST_OUT]
     r, timing = simulate(build_system(dist, names), params,
                          {"vehicle_speed": spec.speed, "QuarterCar.sprung_mass": spec.mass}, record, spec,
                          spec.duration)
@@ -96,13 +96,12 @@ def run(spec: RunSpec) -> dict:
     w = t >= t[0] + spec.warmup
     p = {v: r[f"QuarterCar.{v}"] for v in plant}
     p["road"] = r["ISORoad.road_height"]
-    # the estimates are relative to the start; the plant's road is absolute (it settles on it)
-    p["road"] = p["road"] - p["road"][0]
     out: dict = {"timing": timing, "estimators": {}}
     for n in names:
         e = {o: r[f"{n}.{o}"] for o in EST_OUT}
         s = {f"index {k}": accuracy_index(fp(p)[w], fe(e)[w]) for k, (fp, fe) in STATES.items()}
-        s.update(road_scores(t, e["road_height_est"], p["road"], e["road_height_std"], warmup=spec.warmup))
+        s.update(road_scores(t, e["road_height_est"], p["road"], e["road_height_std"], warmup=spec.warmup,
+                             distance=r["ISORoad.distance"]))
         s["mass_end_pct"] = float(100 * (e["sprung_mass_est"][-1] / spec.mass - 1))
         s["status_nonzero"] = int(np.count_nonzero(e["status"][1:]))
         out["estimators"][n] = s

@@ -21,13 +21,14 @@ def run(spec: RunSpec) -> dict:
     dist = Path(spec.dist)
     params = plant_params(spec)
     params.update({f"SuspensionEstimator.{k}": x for k, x in {**vehicle_params(spec), **noise_params(spec)}.items()})
-    record = ["ISORoad.road_height", "SuspensionEstimator.road_class_est", "SuspensionEstimator.road_height_est"]
+    record = ["ISORoad.road_height", "ISORoad.distance", "SuspensionEstimator.road_class_est", "SuspensionEstimator.road_height_est"]
     r, timing = simulate(build_system(dist, ["SuspensionEstimator"]), params,
                          {"vehicle_speed": spec.speed, "QuarterCar.sprung_mass": NOMINAL_MASS}, record, spec,
                          spec.duration)
     t, cls = r["time"], r["SuspensionEstimator.road_class_est"]
     seen = np.nonzero(cls > 0)[0]
-    scores = road_scores(t, r["SuspensionEstimator.road_height_est"], r["ISORoad.road_height"], warmup=spec.warmup)
+    scores = road_scores(t, r["SuspensionEstimator.road_height_est"], r["ISORoad.road_height"], warmup=spec.warmup,
+                         distance=r["ISORoad.distance"])
     return {"timing": timing, "class_first_s": float(t[seen[0]]) if len(seen) else math.inf,
             "class_right": float(np.mean(cls[seen[0]:] == spec.road_class)) if len(seen) else math.nan,
             "class_counts": {int(k): int(v) for k, v in zip(*np.unique(cls[seen[0]:], return_counts=True))}

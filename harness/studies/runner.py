@@ -35,7 +35,7 @@ import numpy as np
 
 from ...plant.sensors import SensorErrors
 from ..cosim import CoSimulation, SimulationError, System
-from ..metrics import highpass, mass_error_pct, road_scores
+from ..metrics import highpass, mass_error_pct, reference_profile, road_scores
 
 ROOT = Path(__file__).resolve().parents[2]
 DIST = ROOT / "dist"
@@ -284,7 +284,7 @@ def run_estimators(spec: RunSpec, estimators: Sequence[Estimator] = ESTIMATORS,
         p = {**vehicle_params(spec), **noise_params(spec), "road_class": 0, "acc_sampling": spec.acc_sampling,
              "m_s_nominal": spec.mass if e.true_mass else spec.nominal_mass, **e.parameters}
         params.update({f"{e.instance}.{k}": v for k, v in p.items()})
-    record = ["ISORoad.road_height"] + [f"{n}.{v}" for n in names for v in (
+    record = ["ISORoad.road_height", "ISORoad.distance"] + [f"{n}.{v}" for n in names for v in (
         "road_height_est", "road_height_std", "sprung_mass_est", "road_class_est", "status")]
     r, timing = simulate(build_system(dist, names), params,
                          {"vehicle_speed": spec.speed, "QuarterCar.sprung_mass": spec.mass},
@@ -294,7 +294,7 @@ def run_estimators(spec: RunSpec, estimators: Sequence[Estimator] = ESTIMATORS,
     out: dict = {"timing": timing, "estimators": {}}
     for n in names:
         est = r[f"{n}.road_height_est"]
-        s = road_scores(t, est, truth, r[f"{n}.road_height_std"], warmup=spec.warmup)
+        s = road_scores(t, est, truth, r[f"{n}.road_height_std"], warmup=spec.warmup, distance=r["ISORoad.distance"])
         m = r[f"{n}.sprung_mass_est"]
         s["mass_err_end_pct"] = float(mass_error_pct(m[-1], spec.mass))
         s["mass_err_mean_pct"] = float(np.mean(mass_error_pct(m[scored], spec.mass)))
@@ -306,7 +306,8 @@ def run_estimators(spec: RunSpec, estimators: Sequence[Estimator] = ESTIMATORS,
         out["estimators"][n] = s
     if spec.traces:
         w = (t >= t[0] + spec.warmup) & (t <= t[0] + spec.warmup + TRACE_WINDOW)
-        tr = {"time": t[w], "truth": truth[w], "truth_hp": highpass(truth, spec.step)[w]}
+        ref = reference_profile(r["ISORoad.distance"], truth)
+        tr = {"time": t[w], "truth": ref[w], "truth_hp": highpass(ref, spec.step)[w]}
         for n in names:
             est = r[f"{n}.road_height_est"]
             tr[n] = est[w]

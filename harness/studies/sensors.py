@@ -20,10 +20,9 @@ asymmetric damper (QuarterCar ``spring_model`` = ``damper_model`` = 1), the esti
 linearisation at the static point as in the robust study (``robust.linearisation``). ISO classes
 (--classes) at 40 and 80 km/h (--speeds), seeds 1..--seeds (road seed i, noise seed 1000 + i).
 
-Scores per run and estimator after the warm-up: HP road error std % and the raw rms error (mm)
-and the coverage of +-2 road_height_std against the reference ``harness.metrics.road_scores``
-uses; the rms error (mm) of road_profile_est against ``harness.metrics.reference_profile`` and
-the coverage of +-2 road_profile_std; the sprung-mass error % (mean, and the largest |error| at
+Scores per run and estimator after the warm-up (``harness.metrics.road_scores``): HP road error
+std %, the rms error (mm) of road_height_est against ``harness.metrics.reference_profile`` and the
+coverage of +-2 road_height_std; the sprung-mass error % (mean, and the largest |error| at
 any instant); the largest status seen over the run. Estimates of a told delay refer to the time
 of the largest lag ago (the contract); they are scored, as every run, against the truth at the
 step's time.
@@ -35,8 +34,8 @@ docs/real-sensors.md):
 
 - HP road error <= ``HP_RATIO`` x that of the same run (plant, class, speed, seed) on ideal
   sensors; at 200 / 100 Hz <= ``RATE_RATIO`` x that of the ``1 kHz averaged`` run;
-- coverage of the profile's error by +-2 road_profile_std in ``COVERAGE`` (the error in the
-  distance band; road_height_std's coverage is shown beside it);
+- coverage of the profile's error by +-2 road_height_std in ``COVERAGE`` (the error in the
+  distance band);
 - the sprung-mass estimate (its mean after the warm-up) within ``MASS_OK`` % of that of the ideal
   run (the 1 kHz averaged run at 200 / 100 Hz); where the body accelerometer's gain is off and the
   estimator is not told (``default``), within that error + ``MASS_SLACK`` %: the body equation
@@ -52,7 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from ...plant.sensors import SensorErrors
-from ..metrics import mass_error_pct, profile_scores, road_scores
+from ..metrics import mass_error_pct, road_scores
 from .runner import (CLASS_LETTERS, NOMINAL_MASS, PAPER000_VEHICLE, SENSOR_ERROR_KEYS, Estimator, RunSpec, Study,
                      build_system, noise_params, plant_params, simulate, vehicle_params, verdict, whole_steps)
 
@@ -94,8 +93,7 @@ HP_RATIO = 1.2
 COVERAGE = (0.90, 0.99)
 MASS_OK = 1.0  # %
 MASS_SLACK = 0.5  # %, added to the body accelerometer's gain error when the estimator is not told it
-METRICS = ("err_std_hp_pct", "rmse_raw_mm", "coverage_2sigma", "profile_rmse_mm", "profile_coverage",
-           "mass_err_mean_pct", "mass_err_max_abs_pct", "status_max")
+METRICS = ("err_std_hp_pct", "rmse_raw_mm", "coverage_2sigma", "mass_err_mean_pct", "mass_err_max_abs_pct", "status_max")
 
 
 def errors_of(case: str) -> tuple[float, ...]:
@@ -119,7 +117,8 @@ def plant_of(spec: dict) -> str:
 
 def estimators_for(spec: RunSpec) -> tuple[Estimator, ...]:
     """``default`` (told the linearisation on the air-spring plant) and, when the plant's sensors
-    have errors, ``told``: the same told them."""
+    have errors, ``told``: the same told them, and so with no allowance for calibration errors
+    in its std (calibration_gain_std = calibration_delay_std = 0)."""
     told_vehicle = {}
     if tuple(spec.plant_models) != PLANTS["linear"]:
         from .robust import linearisation
@@ -129,6 +128,7 @@ def estimators_for(spec: RunSpec) -> tuple[Estimator, ...]:
     if not spec.sensor_errors:
         return (default,)
     calibration = dict(zip(SENSOR_ERROR_KEYS, map(float, spec.sensor_errors)))
+    calibration.update(calibration_gain_std=0.0, calibration_delay_std=0.0)
     return default, Estimator("told", "told", {**default.parameters, **calibration})
 
 
@@ -152,7 +152,7 @@ def run(spec: RunSpec) -> dict:
              "m_s_nominal": spec.nominal_mass, **e.parameters}
         params.update({f"{e.instance}.{k}": v for k, v in p.items()})
     record = ["ISORoad.road_height", "ISORoad.distance"] + [f"{n}.{v}" for n in names for v in (
-        "road_height_est", "road_height_std", "road_profile_est", "road_profile_std", "sprung_mass_est", "status")]
+        "road_height_est", "road_height_std", "sprung_mass_est", "status")]
     r, timing = simulate(build_system(Path(spec.dist), names), params,
                          {"vehicle_speed": spec.speed, "QuarterCar.sprung_mass": spec.mass}, record, spec,
                          spec.duration)
@@ -160,10 +160,9 @@ def run(spec: RunSpec) -> dict:
     scored = t >= t[0] + spec.warmup
     out: dict = {"timing": timing, "estimators": {}}
     for n in names:
-        s = road_scores(t, r[f"{n}.road_height_est"], truth, r[f"{n}.road_height_std"], warmup=spec.warmup)
-        p = profile_scores(t, r["ISORoad.distance"], r[f"{n}.road_profile_est"], truth, r[f"{n}.road_profile_std"],
-                           warmup=spec.warmup)  # the contract's default profile_cutoff
-        s["profile_rmse_mm"], s["profile_coverage"] = p["profile_rmse_mm"], p["profile_coverage"]
+        # at the contract's default profile_cutoff
+        s = road_scores(t, r[f"{n}.road_height_est"], truth, r[f"{n}.road_height_std"], warmup=spec.warmup,
+                        distance=r["ISORoad.distance"])
         m = mass_error_pct(r[f"{n}.sprung_mass_est"][scored], spec.mass)
         s["mass_err_mean_pct"] = float(np.mean(m))
         s["mass_err_max_abs_pct"] = float(np.max(np.abs(m)))
@@ -173,8 +172,8 @@ def run(spec: RunSpec) -> dict:
         lag = told_lag(estimators[names.index(n)])
         if lag > 0:  # for information: against the truth of the time the estimates refer to
             at_lag = np.interp(t - lag, t, truth)
-            s["err_std_hp_pct_at_lag"] = road_scores(t, r[f"{n}.road_height_est"], at_lag, warmup=spec.warmup)[
-                "err_std_hp_pct"]
+            s["err_std_hp_pct_at_lag"] = road_scores(t, r[f"{n}.road_height_est"], at_lag, warmup=spec.warmup,
+                                                     distance=r["ISORoad.distance"])["err_std_hp_pct"]
         out["estimators"][n] = s
     return out
 
@@ -263,7 +262,7 @@ class Sensors(Study):
         hp = [e["err_std_hp_pct"] <= ratio * r["err_std_hp_pct"] for e, r in pairs]
         mass = [abs(_mass_off_pct(e["mass_err_mean_pct"], r["mass_err_mean_pct"])) <= self.mass_bound(case, inst)
                 for e, r in pairs]
-        seeds = [runs[s][inst]["profile_coverage"] for s in runs if inst in runs[s]]
+        seeds = [runs[s][inst]["coverage_2sigma"] for s in runs if inst in runs[s]]
         cov = [COVERAGE[0] <= float(np.mean(seeds)) <= COVERAGE[1]] if seeds else []
         return {k: (all(v) if v else None) for k, v in (("hp", hp), ("coverage", cov), ("mass", mass))}
 
@@ -300,18 +299,17 @@ class Sensors(Study):
              f"1..{suite.seeds}, {suite.duration:g} s runs, {suite.warmup:g} s warm-up; the sensor-error cases at "
              f"{1e3 * suite.step:g} ms. Each value: mean over seeds (worst seed). HP: HP road error std %; xref: HP "
              f"over that of the same seed's reference run (ideal sensors; at 200 / 100 Hz the 1 kHz averaged run); "
-             f"raw: rms error mm of road_height_est against road_scores' reference; cov: share of those within +-2 "
-             f"road_height_std; profile: rms error mm of road_profile_est against metrics.reference_profile; pcov: "
-             f"share of those within +-2 road_profile_std (the coverage target); mass: sprung-mass error % (mean "
+             f"profile: rms error mm of road_height_est against metrics.reference_profile; pcov: share of those "
+             f"within +-2 road_height_std (the coverage target); mass: sprung-mass error % (mean "
              f"after the warm-up); max|mass|: the largest |error| % at any instant after the warm-up; status: the "
              f"largest seen. Targets: HP and mass on every seed, the coverage over the seeds together: HP <= "
              f"{HP_RATIO} x ideal (200 Hz <= {LOGGING['200 Hz logging'][1]} x, 100 Hz <= "
              f"{LOGGING['100 Hz logging'][1]} x the 1 kHz averaged run); pcov in [{COVERAGE[0]}, {COVERAGE[1]}]; mass "
              f"within {MASS_OK:g} % of the reference run's (default with the body accelerometer's gain off: that "
              f"error + {MASS_SLACK:g} %).", "",
-             "| plant | ISO | km/h | case | estimator | HP % | xref | raw mm | cov | profile mm | pcov | mass % "
+             "| plant | ISO | km/h | case | estimator | HP % | xref | profile mm | pcov | mass % "
              "| max\\|mass\\| % | status | HP | pcov | mass |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for plant, cls, kmh, case, inst in self.grid(suite):
             v = self.values(cells, plant, cls, kmh, case, inst)
             ok = self.verdicts(cells, plant, cls, kmh, case, inst)
@@ -323,8 +321,7 @@ class Sensors(Study):
             status = v["status_max"][1]
             L.append(f"| {plant} | {CLASS_LETTERS[cls - 1]} | {kmh} | {case} | {label} | "
                      f"{f('err_std_hp_pct', '.2f')} | {f('hp_ratio', '.2f')} | {f('rmse_raw_mm', '.2f')} | "
-                     f"{f('coverage_2sigma', '.3f')} | {f('profile_rmse_mm', '.2f')} | "
-                     f"{f('profile_coverage', '.3f')} | "
+                     f"{f('coverage_2sigma', '.3f')} | "
                      f"{f('mass_err_mean_pct', '+.2f')} | {f('mass_err_max_abs_pct', '.2f')} | "
                      f"{'–' if math.isnan(status) else f'{status:.0f}'} | {verdict(ok['hp'])} | "
                      f"{verdict(ok['coverage'])} | {verdict(ok['mass'])} |")

@@ -63,7 +63,7 @@ from suspension_estimation.estimators.kalman import LinearKF
 from suspension_estimation.estimators.model import DiscreteModel
 from suspension_estimation.estimators.response_class import block_features, predict
 from suspension_estimation.estimators.vb_akf import DOF, N_ITER, RHO, TAU, VBAKF, vb_update
-from suspension_estimation.harness.metrics import highpass
+from suspension_estimation.harness.metrics import highpass, reference_profile
 from suspension_estimation.harness.smoothing import FilterRecord, rts_smooth
 from suspension_estimation.harness.studies.runner import RunSpec, Study, verdict
 from suspension_estimation.plant import iso8608
@@ -480,6 +480,7 @@ def loosening_run(spec) -> dict:
     h = spec.step
     t_change = spec.warmup  # the instant of the noise growth (s)
     meas, truth = loosening_measurements(spec.seed, spec.road_class, spec.speed, h, spec.duration, t_change)
+    truth[:, 4] = reference_profile(spec.speed * h * np.arange(1, len(truth) + 1), truth[:, 4])  # road_height_est's
     dist = Path(spec.dist)
     comps = {name: dist / "SuspensionEstimator.fmu" for name in LOOSE_ESTIMATORS}
     wires = ("acc_sprung", "acc_unsprung", "susp_deflection", "vehicle_speed")
