@@ -1,4 +1,5 @@
-"""The road filter's road estimate freed of its common-mode reference, the input of road_height_est.
+"""road_height_est from the road filter's road estimate: freed of its common-mode reference and
+high-passed in distance (``Profiler``).
 
 The road filters of the KF family (codes 0-2) pin the car's absolute height with a weak
 reference: the common mode of body, wheel and road passes the high-pass
@@ -16,6 +17,8 @@ un-referenced; a 0.1 m/s^2 body bias 31 / 30 (second order), 6.3 / 6.3 (third or
 from __future__ import annotations
 
 import math
+
+from ..plant.profile_band import DistanceHighpass
 
 
 class Unreference:
@@ -43,3 +46,30 @@ class Unreference:
         i1 = self.i1
         self.i1 = i1 + d1
         return (r - last) + self.a1 * d1 + self.a0 * 0.5 * h * (i1 + self.i1)
+
+
+class Profiler:
+    """The profile (m) of a road estimate: ``Unreference`` with ``reference`` (f_ref Hz,
+    zeta_ref; None: the identity), its increments fed while the car moves into the high-pass in
+    distance at ``cutoff`` m (plant.profile_band), so that the profile holds while the car stands
+    and a restart of the estimate adds no jump."""
+
+    def __init__(self, cutoff: float, reference: tuple[float, float] | None = None):
+        self.unreference = Unreference(*(reference or (0.0, 0.0)))
+        self.band = DistanceHighpass(cutoff)
+        self.u = 0.0  # m, the sum of the un-referenced increments while moving
+
+    def restart(self) -> None:
+        """The estimate restarts: its next sample only sets the level."""
+        self.unreference.restart()
+
+    def step(self, road: float, h: float, ds: float) -> float:
+        """One sample of the estimate ``road`` (m) h s after the last, ``ds`` m travelled (0: the
+        car stands); a value that is not finite restarts. Returns the profile (m)."""
+        if not math.isfinite(road):
+            self.unreference.restart()
+        else:
+            du = self.unreference.step(road, h)
+            if ds > 0.0:
+                self.u += du
+        return self.band.step(ds, self.u)

@@ -83,15 +83,17 @@ def reference_highpass(f: np.ndarray, f_ref: float, zeta_ref: float) -> np.ndarr
 
 
 def _road_and_noise_transfers(Phi, H, K, h: float, f: np.ndarray, vehicle: Vehicle, acc_sampling: int,
-                              row: int) -> tuple[np.ndarray, np.ndarray]:
-    """(T (nf,), F (nf, channels)): the road -> estimate transfer through the plant and the
-    steady-state filter with gain K, and the measurement -> estimate transfers (state ``row``)."""
+                              row: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(T (nf,), F (nf, channels), FG (nf, channels)): the road -> estimate transfer through the
+    plant and the steady-state filter with gain K, the measurement -> estimate transfers (state
+    ``row``), and each channel's part of T, F_i G_i (G: ``plant_transfer``)."""
     zinv = np.exp(-2j * np.pi * np.asarray(f, float) * h)
     G = plant_transfer(vehicle, h, zinv, acc_sampling)
     e = np.zeros((1, Phi.shape[0]))
     e[0, row] = 1.0
     F = filter_transfer(Phi, H, K, zinv, e)[:, 0, :]
-    return np.einsum("fi,fi->f", F, G[:, :K.shape[1]]), F
+    FG = F * G[:, :K.shape[1]]
+    return FG.sum(1), F, FG
 
 
 def road_transfer(Phi, H, K, h: float, f: np.ndarray, vehicle: Vehicle = DEFAULT_VEHICLE,
@@ -137,7 +139,7 @@ def road_error_variance(Phi, H, K, h: float, gd_n0: float, speed: float, vehicle
     if not f_hi > f_lo:
         return 0.0
     f = np.geomspace(f_lo, f_hi, nf)
-    T, _ = _road_and_noise_transfers(Phi, H, K, h, f, vehicle, acc_sampling, row)
+    T = _road_and_noise_transfers(Phi, H, K, h, f, vehicle, acc_sampling, row)[0]
     if reference is None:
         err = T - 1
     else:
@@ -173,49 +175,40 @@ def raw_error_variance(Phi, H, K, R, h: float, gd_n0: float, speed: float, vehic
                                                     reference=reference)
 
 
+def band_error_budget(Phi, H, K, R, h: float, gd_n0: float, speed: float, cutoff: float,
+                      vehicle: Vehicle = DEFAULT_VEHICLE, acc_sampling: int = 0, row: int = 4, nf: int = 600,
+                      reference: tuple[float, float] | None = None) -> tuple[float, np.ndarray, np.ndarray]:
+    """(var, V_g, V_tau) of the steady-state road-height error of the filter with gain K in the
+    distance band of plant.profile_band (the error high-passed in distance at ``cutoff`` m, at
+    ``speed`` m/s a high-pass in time at speed / cutoff Hz), on nf log-spaced frequencies from a
+    twentieth of the band's corner to Nyquist; T, F_i as in ``road_error_variance``, divided by
+    T_r, the reference's high-pass (``reference_highpass`` of ``reference`` = (f_ref, zeta_ref))
+    that road_profile.Unreference takes off the estimate (1 without), B the band's response:
+
+    - var (m^2): int |B|^2 (|T - 1|^2 S_r + sum_i |F_i|^2 S_n,i) df, the ISO 8608 road PSD S_r of
+      ``gd_n0`` and the white sensor noises of R (one-sided PSD 2 h R_ii): the error of
+      ``road_height_est`` when the vehicle is the model's and the sensors as R says;
+    - V_g, V_tau (per channel): what a gain error g - 1 (m^2 per unit^2) or a delay tau (m^2/s^2)
+      of that channel alone adds, to first order: its error is then (g - 1) y or -tau dy/dt, y its
+      response to the road, so V = int |B|^2 |F_i G_i|^2 S_r (1 or (2 pi f)^2) df."""
+    v = max(abs(float(speed)), 0.1)
+    f = np.geomspace(0.05 * v / cutoff, 0.999 / (2 * h), nf)
+    T, F, FG = _road_and_noise_transfers(Phi, H, K, h, f, vehicle, acc_sampling, row)
+    if reference is not None:
+        inv = 1.0 / reference_highpass(f, *reference)
+        T, F, FG = T * inv, F * inv[:, None], FG * inv[:, None]
+    B2 = np.abs(band_response(f / v, cutoff)) ** 2
+    Sr = iso_psd_time(f, gd_n0, v)
+    var = np.trapezoid(B2 * (np.abs(T - 1) ** 2 * Sr + (np.abs(F) ** 2 * (2 * h * np.diag(R))).sum(1)), f)
+    E = (B2 * Sr)[:, None] * np.abs(FG) ** 2
+    return float(var), np.trapezoid(E, f, axis=0), np.trapezoid(E * ((2 * np.pi * f) ** 2)[:, None], f, axis=0)
+
+
 def band_error_variance(Phi, H, K, R, h: float, gd_n0: float, speed: float, cutoff: float,
                         vehicle: Vehicle = DEFAULT_VEHICLE, acc_sampling: int = 0, row: int = 4,
                         nf: int = 600, reference: tuple[float, float] | None = None) -> float:
-    """Steady-state variance (m^2) of the road-height error of the filter with gain K in the
-    distance band of plant.profile_band (the error high-passed in distance at ``cutoff`` m, at
-    ``speed`` m/s a high-pass in time at speed / cutoff Hz): the integral of |B|^2 (|T/T_r - 1|^2
-    S_r + sum_i |F_i/T_r|^2 S_n,i) over frequency, with the ISO 8608 road PSD S_r of ``gd_n0`` and
-    the white sensor noises of R (one-sided PSD 2 h R_ii up to Nyquist), on nf log-spaced
-    frequencies from a twentieth of the band's corner. T and F_i as in ``road_error_variance``;
-    T_r the reference's high-pass (``reference_highpass`` of ``reference`` = (f_ref, zeta_ref))
-    that road_profile.Unreference takes off the estimate, 1 without. This is the error of
-    ``road_height_est`` when the vehicle is the model's."""
-    v = max(abs(float(speed)), 0.1)
-    f = np.geomspace(0.05 * v / cutoff, 0.999 / (2 * h), nf)
-    T, F = _road_and_noise_transfers(Phi, H, K, h, f, vehicle, acc_sampling, row)
-    if reference is not None:
-        inv = 1.0 / reference_highpass(f, *reference)
-        T, F = T * inv, F * inv[:, None]
-    Sn = 2 * h * np.diag(R)
-    S = np.abs(T - 1) ** 2 * iso_psd_time(f, gd_n0, v) + (np.abs(F) ** 2 * Sn).sum(1)
-    return float(np.trapezoid(np.abs(band_response(f / v, cutoff)) ** 2 * S, f))
-
-
-def band_calibration_sensitivity(Phi, H, K, h: float, gd_n0: float, speed: float, cutoff: float,
-                                 vehicle: Vehicle = DEFAULT_VEHICLE, acc_sampling: int = 0, row: int = 4,
-                                 nf: int = 600, reference: tuple[float, float] | None = None
-                                 ) -> tuple[np.ndarray, np.ndarray]:
-    """(V_g, V_tau), one value per channel: the steady-state variance of the road error in the
-    band of ``band_error_variance`` that a gain error g - 1 (V_g, m^2 per unit^2) or a delay tau
-    (V_tau, m^2/s^2) of that channel alone adds, to first order: a channel's error is then
-    (g - 1) y or -tau dy/dt, y its response to the road (plant_transfer G_i), so V = int |B|^2
-    |F_i G_i|^2 S_r (1 or (2 pi f)^2) df, with F_i as in ``band_error_variance``."""
-    v = max(abs(float(speed)), 0.1)
-    f = np.geomspace(0.05 * v / cutoff, 0.999 / (2 * h), nf)
-    zinv = np.exp(-2j * np.pi * f * h)
-    G = plant_transfer(vehicle, h, zinv, acc_sampling)[:, :K.shape[1]]
-    e = np.zeros((1, Phi.shape[0]))
-    e[0, row] = 1.0
-    F = filter_transfer(Phi, H, K, zinv, e)[:, 0, :]
-    if reference is not None:
-        F = F / reference_highpass(f, *reference)[:, None]
-    E = (np.abs(band_response(f / v, cutoff)) ** 2 * iso_psd_time(f, gd_n0, v))[:, None] * np.abs(F * G) ** 2
-    return np.trapezoid(E, f, axis=0), np.trapezoid(E * ((2 * np.pi * f) ** 2)[:, None], f, axis=0)
+    """var of ``band_error_budget`` (m^2): the band error from the road and the sensor noise."""
+    return band_error_budget(Phi, H, K, R, h, gd_n0, speed, cutoff, vehicle, acc_sampling, row, nf, reference)[0]
 
 
 def analyse(Phi, H, K, R_true, h, gd_n0, speed, vehicle=DEFAULT_VEHICLE, road_row=None,

@@ -30,7 +30,7 @@ speed, h)`` once per doStep; it returns a dict keyed by the contract's output na
 estimate refers to the instant of the measurement passed in (filtered estimate x_{k|k}).
 
 The road output. ``road_height_est`` is the road profile as inertial profilers report it: the
-filter's road, freed of its common-mode reference (road_profile.Unreference), high-passed in
+filter's road, freed of its common-mode reference (road_profile.Profiler), high-passed in
 distance at ``profile_cutoff`` (plant.profile_band, third order), fed while the car moves
 (``_profile``); harness.metrics.reference_profile gives it from a true profile.
 ``road_height_std`` is the filter's P scaled to the steady-state error in that band with the
@@ -68,7 +68,7 @@ from scipy.signal import butter
 
 from ..plant import iso8608
 from ..plant.iri import SEGMENT_RANGE, IRIMeter
-from ..plant.profile_band import CUTOFF_RANGE, PROFILE_CUTOFF, DistanceHighpass
+from ..plant.profile_band import CUTOFF_RANGE, PROFILE_CUTOFF
 from ..plant.quarter_car import NOISE_STD_RANGES
 from ..plant.sensors import CALIBRATION_ALLOWANCE, SENSOR_ERROR_RANGES, DelayLine, SensorErrors
 from ..plant.step_size import same_step
@@ -83,9 +83,9 @@ from .mass import MassEstimator
 from .model import (IVR, IVS, IVU, IZR, IZS, IZU, N_STATES, N_STATES_AVG, DiscreteModel,
                     held_input_matrix, measurement_covariance)
 from .road_class import RoadClassifier
-from .road_profile import Unreference
+from .road_profile import Profiler
 from .standstill_bias import LEARNED, StandstillBias
-from .steady_state import band_calibration_sensitivity, band_error_variance, reference_lag
+from .steady_state import band_error_budget, reference_lag
 from .tuning import TUNING, TUNING_FIELDS, Tuning
 from .vb_akf import vb_problems
 
@@ -377,19 +377,13 @@ class SuspensionEstimator:
                                 and self.mass_est.estimate_damping)
         self.classifier = RoadClassifier(gain=cfg.tuning.class_gain)
         self.iri = IRIMeter(cfg.iri_segment, start=0.0)  # raises a ValueError naming iri_segment
-        # road_height_est: the road estimate's increments while moving, high-passed in distance
         self.motion = STANDING
-        self._band = DistanceHighpass(cfg.profile_cutoff)
-        self._profile_u = 0.0  # m, the sum of the road estimate's increments while moving
-        # the road estimate without the common-mode reference of the KF family's road model
-        # (road_profile.py); the identity for the estimators of the registry
+        # road_height_est (road_profile.Profiler): the KF family's road model has a common-mode
+        # reference to take off, the estimators of the registry none
         rm = cfg.tuning.road_model
         self._reference = (rm.f_ref, rm.zeta_ref) if self.composed is None and rm.f_ref > 0 else None
-        self.unreference = Unreference(*(self._reference or (0.0, 0.0)))
-        # the same for the gap between the start's two filters (_start_output)
-        self._gap_unreference = Unreference(*(self._reference or (0.0, 0.0)))
-        self._gap_band = DistanceHighpass(cfg.profile_cutoff)
-        self._gap_u = 0.0
+        self.profile = Profiler(cfg.profile_cutoff, self._reference)
+        self._gap_profile = Profiler(cfg.profile_cutoff, self._reference)  # of _start_output's gap
         self._band_cache: tuple | None = None  # (model, class, ratio): see _band_ratio
         self.model: DiscreteModel | None = None
         self._model_key: tuple | None = None
@@ -429,7 +423,7 @@ class SuspensionEstimator:
         n = self.n_states
         kf = self.kf
         kf.x = np.zeros(n)
-        self.unreference.restart()
+        self.profile.restart()
         self._blend.reset()
         self._hold_left = 0.0
         if self.anchor is not None:
@@ -939,10 +933,8 @@ class SuspensionEstimator:
         if self._start_kf is not None:
             # the share of the two filters' road gap the output may be off by, in the profile's band
             share, gap = self._start_output(x, h)
-            moving = self.motion == MOVING
-            du = self._gap_unreference.step(gap, h)
-            self._gap_u += du if moving else 0.0
-            start_var = (share * self._gap_band.step(abs(speed) * h if moving else 0.0, self._gap_u)) ** 2
+            ds = abs(speed) * h if self.motion == MOVING else 0.0
+            start_var = (share * self._gap_profile.step(gap, h, ds)) ** 2
         if status != STATUS_REINIT:
             self.classifier.update(self.distance, x[IZR], speed)
         out = self.outputs
@@ -1001,7 +993,7 @@ class SuspensionEstimator:
             if not self._moved:
                 if self.composed is not None:
                     self.composed.reset()
-                    self.unreference.restart()
+                    self.profile.restart()
                 else:
                     self.reset_state(from_rest=True)
         if not standing:
@@ -1011,7 +1003,7 @@ class SuspensionEstimator:
 
     def _band_ratio(self) -> float:
         """Steady-state variance of the road error in the distance band of road_height_est
-        (steady_state.band_error_variance: the ISO road of the assumed class and the sensor
+        (steady_state.band_error_budget: the ISO road of the assumed class and the sensor
         noise, the vehicle the model's) over the active filter's own P[z_r, z_r] (the anchor's,
         or the force-error filter's once the anchor is dropped), so that the std follows P
         through rejected samples and restarts. Recomputed (about 3 ms) when the model or the
@@ -1026,31 +1018,22 @@ class SuspensionEstimator:
         if sol is not None and not isinstance(kf, MMEKF):
             K, P = sol
             gd, c = iso8608.class_psd_n0(cls), self.cfg
-            var = band_error_variance(m.Phi, m.H, K, self.R, m.h, gd, m.speed, self.cfg.profile_cutoff,
-                                      m.vehicle, self.acc_sampling, IZR, reference=self._reference)
-            v_g, v_tau = band_calibration_sensitivity(m.Phi, m.H, K, m.h, gd, m.speed, self.cfg.profile_cutoff,
-                                                      m.vehicle, self.acc_sampling, IZR, reference=self._reference)
+            var, v_g, v_tau = band_error_budget(m.Phi, m.H, K, self.R, m.h, gd, m.speed, self.cfg.profile_cutoff,
+                                                m.vehicle, self.acc_sampling, IZR, reference=self._reference)
             var += c.calibration_gain_std ** 2 * float(v_g[:2].sum()) + c.calibration_delay_std ** 2 * float(v_tau.sum())
             ratio = _checked_ratio(var, P)
         self._band_cache = (m, cls, ratio)
         return ratio
 
     def _profile(self, out: dict, road: float, speed: float, h: float, var: float, status: int) -> None:
-        """road_height_est and road_height_std: the road filter's road ``road`` (m) freed of its
-        common-mode reference (road_profile.Unreference) and high-passed in distance
-        (plant.profile_band), fed only with its increments while the car moves, so that the
-        profile holds while it stands (the road under the tyre does not change then; the
-        estimate's drift does not count) and a restart (re-initialisation) adds no jump. ``var``
-        (m^2): the variance of the band error; held while standing."""
+        """road_height_est and road_height_std: the profile (road_profile.Profiler) of the road
+        filter's road ``road`` (m); it holds while the car stands (the road under the tyre does not
+        change then; the estimate's drift does not count). ``var`` (m^2): the variance of the band
+        error; held while standing."""
         moving = self.motion == MOVING
-        if status == STATUS_REINIT or not math.isfinite(road):
-            self.unreference.restart()
-        else:
-            du = self.unreference.step(road, h)
-            if moving:
-                self._profile_u += du
-        ds = abs(speed) * h if moving else 0.0
-        out["road_height_est"] = self._band.step(ds, self._profile_u)
+        # a re-initialised filter restarts the profile's input, as a sample that is not finite
+        out["road_height_est"] = self.profile.step(math.nan if status == STATUS_REINIT else road, h,
+                                                   abs(speed) * h if moving else 0.0)
         if moving or "road_height_std" not in out:
             out["road_height_std"] = math.sqrt(var) if var >= 0.0 else math.inf
 

@@ -94,11 +94,9 @@ def _run(args: argparse.Namespace) -> int:
         print(line)
     print(f"  wrote {run.csv}")
     if args.plots and scenario.plots:
-        from ..plant.profile_band import PROFILE_CUTOFF
         from .plots import plot_result
 
-        cutoff = float(scenario.parameters(True).get("SuspensionEstimator.profile_cutoff", PROFILE_CUTOFF))
-        for f in plot_result(run.result, out, scenario.name, cutoff=cutoff):
+        for f in plot_result(run.result, out, scenario.name, cutoff=scenario.profile_cutoff):
             print(f"  wrote {f}")
     return 0
 

@@ -10,7 +10,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..plant.profile_band import PROFILE_CUTOFF
 from .cosim import CoSimulation, SimulationError, System, model_variables, write_csv
 from .scenario import Profile, Scenario, ScenarioError
 from .ssp import ROAD_PLANT, ROAD_PLANT_ESTIMATOR, ensure_system_ssp, read_ssp
@@ -211,7 +210,7 @@ def summary(run: Run) -> list[str]:
         t = r["time"]
         warmup = metrics.warmup_for(t)
         std = r["SuspensionEstimator.road_height_std"] if "SuspensionEstimator.road_height_std" in r.dtype.names else None
-        cutoff = float(run.scenario.parameters(True).get("SuspensionEstimator.profile_cutoff", PROFILE_CUTOFF))
+        cutoff = run.scenario.profile_cutoff
         try:
             s = metrics.road_scores(t, r["SuspensionEstimator.road_height_est"], r["ISORoad.road_height"], std,
                                     warmup=warmup, distance=r["ISORoad.distance"], cutoff=cutoff)

@@ -119,6 +119,13 @@ class Scenario:
             out.update({f"SuspensionEstimator.{k}": v for k, v in {**assumed, **self.estimator}.items()})
         return out
 
+    @property
+    def profile_cutoff(self) -> float:
+        """m, the estimator's profile_cutoff (the band road_height_est and its truth are in)."""
+        from ..plant.profile_band import PROFILE_CUTOFF
+
+        return float(self.estimator.get("profile_cutoff", PROFILE_CUTOFF))
+
 
 def _err(where: str, msg: str) -> ScenarioError:
     return ScenarioError(f"{where}: {msg}")

@@ -472,21 +472,14 @@ def _blend(hi: np.ndarray, lo: np.ndarray, hz: float, h: float) -> np.ndarray:
 def profile_of(road: np.ndarray, speed: np.ndarray, h: float, cutoff: float, standstill: float,
                reference: tuple[float, float]) -> np.ndarray:
     """The road profile (m) of a road estimate ``road`` (m, relative to the common-mode reference
-    ``reference`` = (f_ref, zeta_ref)) as the estimator makes road_height_est: freed of the
-    reference (estimators.road_profile.Unreference), its increments while the car moves (|speed|
-    >= ``standstill`` m/s) high-passed in distance at ``cutoff`` m (plant.profile_band)."""
-    from suspension_estimation.estimators.road_profile import Unreference
-    from suspension_estimation.plant.profile_band import DistanceHighpass
+    ``reference`` = (f_ref, zeta_ref)) as the estimator makes road_height_est
+    (estimators.road_profile.Profiler; the car moves while |speed| >= ``standstill`` m/s)."""
+    from suspension_estimation.estimators.road_profile import Profiler
 
-    un, band = Unreference(*reference), DistanceHighpass(cutoff)
-    out, u = np.empty(len(road)), 0.0
-    for k, (r, sp) in enumerate(zip(np.asarray(road, float).tolist(), np.abs(np.asarray(speed, float)).tolist())):
-        moving = sp >= standstill
-        du = un.step(r, h)
-        if moving:
-            u += du
-        out[k] = band.step(sp * h if moving else 0.0, u)
-    return out
+    p = Profiler(cutoff, reference)
+    sp = np.abs(np.asarray(speed, float))
+    ds = np.where(sp >= standstill, sp * h, 0.0).tolist()
+    return np.array([p.step(r, h, d) for r, d in zip(np.asarray(road, float).tolist(), ds)])
 
 
 def smooth_default(acc_sprung: np.ndarray, acc_unsprung: np.ndarray, susp_deflection: np.ndarray,

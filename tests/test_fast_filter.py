@@ -46,11 +46,11 @@ def test_road_height_std_is_the_band_error_at_the_filters_covariance():
     steady-state error variance of the profile (steady_state.band_error_variance: the ISO road of
     the assumed class and the sensor noise, through the reference taken off), plus with the
     default calibration allowance the variance of 3 % gain errors on both accelerometers and 2 ms
-    delays on every channel (band_calibration_sensitivity). The estimator starts at that fixed
+    delays on every channel (band_error_budget's V_g, V_tau). The estimator starts at that fixed
     point, so the std holds from the first step and again right after a re-initialisation (no
     start term: the profile has no start level); without the body accelerometer the filter
     predicts, P[z_r, z_r] grows and the std with it, and both come back."""
-    from suspension_estimation.estimators.steady_state import band_calibration_sensitivity, band_error_variance
+    from suspension_estimation.estimators.steady_state import band_error_budget
 
     _, meas, _, _ = simulate(road_class=3, T=6.0)
     meas = meas.copy()
@@ -74,9 +74,8 @@ def test_road_height_std_is_the_band_error_at_the_filters_covariance():
         args = (m.Phi, m.H, K)
         rest = (h, iso8608.class_psd_n0(3), speed, est.cfg.profile_cutoff, m.vehicle, 0, IZR)
         ref = (RoadModel.f_ref, RoadModel.zeta_ref)
-        var = band_error_variance(*args, R, *rest, reference=ref)
+        var, v_g, v_tau = band_error_budget(*args, R, *rest, reference=ref)
         if allowance:
-            v_g, v_tau = band_calibration_sensitivity(*args, *rest, reference=ref)
             var += 0.03 ** 2 * (v_g[0] + v_g[1]) + 0.002 ** 2 * v_tau.sum()
         assert std[allowance][0] == pytest.approx(math.sqrt(var), rel=1e-6)
         assert std[allowance][2999] == pytest.approx(math.sqrt(var), rel=1e-6)
