@@ -116,19 +116,23 @@ class IMM:
         self.Ps = (w @ self.Ps.reshape(r, n * n)).reshape(r, n, n) + (d * w[:, :, None]).transpose(0, 2, 1) @ d
         self.xs = x0
 
-    def predict(self) -> None:
-        """Mixing, then eqs. 21-22 for every filter."""
+    def predict(self, bu: np.ndarray | None = None) -> None:
+        """Mixing, then eqs. 21-22 for every filter; ``bu`` is eq. 21's known-input term B_i u,
+        (n,) for every filter alike or (r, n) one per filter (None: no input)."""
         self.mix()
         self.xs = (self.Phi @ self.xs[:, :, None])[:, :, 0]
+        if bu is not None:
+            self.xs = self.xs + bu
         self.Ps = self.Phi @ self.Ps @ self.Phi.transpose(0, 2, 1) + self.Q
 
     def update(self, z: np.ndarray, rows: np.ndarray | None = None) -> None:
-        """Eqs. 23-32 with the measurement ``z`` (m,); ``rows``: update with these channels of it
-        only (every model alike: H_i and R restricted to them), None = all."""
+        """Eqs. 23-32 with the measurement ``z`` (m,), or (r, m) one per filter (a measurement less
+        each model's own direct feed-through of a known input); ``rows``: update with these
+        channels of it only (every model alike: H_i and R restricted to them), None = all."""
         H, P, R = self.H, self.Ps, self.R
         if rows is not None:
             rows = np.asarray(rows, int)
-            H, R, z = H[:, rows, :], R[np.ix_(rows, rows)], z[rows]
+            H, R, z = H[:, rows, :], R[np.ix_(rows, rows)], z[..., rows]
         Ht = H.transpose(0, 2, 1)
         PHt = P @ Ht
         S = H @ PHt + R
@@ -138,7 +142,7 @@ class IMM:
         ss = s[:, :, None] * s[:, None, :]
         SIn = np.linalg.inv(S * ss)
         K = PHt @ (SIn * ss)
-        d = z[None, :] - (H @ self.xs[:, :, None])[:, :, 0]
+        d = (z[None, :] if z.ndim == 1 else z) - (H @ self.xs[:, :, None])[:, :, 0]
         self.xs = self.xs + (K @ d[:, :, None])[:, :, 0]
         IKH = self._I - K @ H
         P = IKH @ P @ IKH.transpose(0, 2, 1) + K @ R @ K.transpose(0, 2, 1)
@@ -147,7 +151,7 @@ class IMM:
         quad = (ds.transpose(0, 2, 1) @ SIn @ ds)[:, 0, 0]
         self.quad = quad  # each filter's NIS d_i' S_i^-1 d_i
         logdet = -np.linalg.slogdet(SIn)[1] - 2.0 * np.log(s).sum(axis=1)
-        self.log_likelihood = -0.5 * (quad + logdet + z.shape[0] * LOG_2PI)
+        self.log_likelihood = -0.5 * (quad + logdet + z.shape[-1] * LOG_2PI)
         # eqs. 29-30 in logs: mu_i proportional to Lambda_i cbar_i, normalised to sum to 1
         with np.errstate(divide="ignore"):
             a = self.log_likelihood + np.log(self.cbar)
@@ -163,10 +167,10 @@ class IMM:
         n = self.x.shape[0]
         self.P = (self.mu @ self.Ps.reshape(-1, n * n)).reshape(n, n) + (e.T * self.mu) @ e
 
-    def predict_only(self) -> None:
-        """A step without a measurement: mixing and prediction; the probabilities are the
-        predicted ones, mu_i = cbar_i (eq. 29 with every Lambda_i equal)."""
-        self.predict()
+    def predict_only(self, bu: np.ndarray | None = None) -> None:
+        """A step without a measurement: mixing and prediction (``bu`` as in ``predict``); the
+        probabilities are the predicted ones, mu_i = cbar_i (eq. 29 with every Lambda_i equal)."""
+        self.predict(bu)
         self.mu = self.cbar.copy()
         self.log_likelihood = np.zeros(self.r)
         self.quad = np.zeros(self.r)

@@ -30,6 +30,7 @@ class HalfCar(ContractSlave):
         (self.acc_body_front_true, self.acc_body_rear_true,
          self.acc_unsprung_front_true, self.acc_unsprung_rear_true) = p.acc_true
         self.susp_deflection_front_true, self.susp_deflection_rear_true = p.deflection_true
+        self.tire_deflection_front_true, self.tire_deflection_rear_true = p.tire_deflection_true
         (self.heave, self.pitch, self.z_u_front, self.z_u_rear,
          self.heave_velocity, self.pitch_rate, self.v_u_front, self.v_u_rear) = p.x.tolist()
         self.tire_force_front, self.tire_force_rear = p.tire_force

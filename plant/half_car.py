@@ -279,6 +279,13 @@ class HalfCar:
         return self.defl0[0] + df, self.defl0[1] + dr
 
     @property
+    def tire_deflection_true(self) -> tuple[float, float]:
+        """Tyre deflections (m) front and rear: wheel minus the road under it, 0 at rest (actuator
+        forces or not: they leave the wheels on the road); the dynamic tyre force is -k_t times it."""
+        dx, du = self.dx.tolist(), self.du.tolist()
+        return dx[2] - du[0], dx[3] - du[1]
+
+    @property
     def tire_force(self) -> tuple[float, float]:
         """Total tyre forces (N, pushing the wheel up) front and rear: the static load at the
         present sprung mass plus k_t (q - z_u) about the equilibrium (where it is 0, actuator

@@ -39,7 +39,13 @@ VALID = {"ISORoad": {"vehicle_speed": 11.0}, "QuarterCar": {"road_height": 0.002
          "HalfCar": {"road_height_front": 0.002, "road_height_rear": -0.001, "sprung_mass": 672.0,
                      "force_front": 50.0, "force_rear": -20.0},
          "SuspensionEstimator": {"acc_sprung": 0.3, "acc_unsprung": -2.0, "susp_deflection": 0.001,
-                                 "vehicle_speed": 11.0}}
+                                 "vehicle_speed": 11.0},
+         "SuspensionController": {"heave_velocity": 0.05, "pitch_rate": 0.01, "v_u_front": 0.1,
+                                  "susp_deflection_front": 0.002, "tire_deflection_front": 0.0005,
+                                  "vehicle_speed": 20.0, "sprung_mass": 672.0},
+         "HalfCarEstimator": {"acc_body_front": 0.3, "acc_body_rear": -0.2, "acc_unsprung_front": 2.0,
+                              "acc_unsprung_rear": -1.5, "susp_deflection_front": 0.001,
+                              "susp_deflection_rear": -0.001, "vehicle_speed": 20.0}}
 
 
 class Unpacked:

@@ -17,7 +17,7 @@ from fmpy.validation import validate_fmu
 from conftest import ROOT
 from fmu_driver import Driven
 
-NAMES = ["ISORoad", "QuarterCar", "SuspensionEstimator", "HalfCar"]
+NAMES = ["ISORoad", "QuarterCar", "SuspensionEstimator", "HalfCar", "SuspensionController", "HalfCarEstimator"]
 INTERFACE_DOC = ROOT / "docs" / "fmu-interface.md"
 
 

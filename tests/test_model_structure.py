@@ -83,7 +83,11 @@ def test_outputs_declare_the_dependencies_of_the_contract(dist, name):
 # a value of each Real input, inside its range, unlike its start value
 _OTHER = {"vehicle_speed": 25.0, "road_height": 0.05, "sprung_mass": 600.0,
           "acc_sprung": 3.0, "acc_unsprung": -20.0, "susp_deflection": 0.02,
-          "road_height_front": 0.05, "road_height_rear": -0.03, "force_front": 500.0, "force_rear": -300.0}
+          "road_height_front": 0.05, "road_height_rear": -0.03, "force_front": 500.0, "force_rear": -300.0,
+          "heave_velocity": 0.1, "pitch_rate": 0.05, "v_u_front": 0.2, "v_u_rear": -0.2, "susp_deflection_front": 0.01,
+          "susp_deflection_rear": -0.01, "tire_deflection_front": 0.002, "tire_deflection_rear": -0.002,
+          "road_class": 1, "acc_body_front": 1.0, "acc_body_rear": -1.0, "acc_unsprung_front": 5.0,
+          "acc_unsprung_rear": -5.0}
 
 
 @pytest.mark.parametrize("name", NAMES)

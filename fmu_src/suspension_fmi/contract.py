@@ -431,6 +431,172 @@ HALF_CAR: tuple[Var, ...] = (
         "1 = front tyre pressed on the road, 0 = the linear tyre pulls (the wheel would have lifted)"),
     Var("tire_contact_rear", "output", "Integer", None, None,
         "1 = rear tyre pressed on the road, 0 = the linear tyre pulls (the wheel would have lifted)"),
+    # added for SuspensionController; at the end, so that the value references above stay as they were
+    Var("tire_deflection_front_true", "output", "Real", "m", None,
+        "noise-free front tyre deflection: wheel minus the road under it, 0 at rest (the dynamic tyre force is "
+        "-k_tf times it)"),
+    Var("tire_deflection_rear_true", "output", "Real", "m", None,
+        "noise-free rear tyre deflection: wheel minus the road under it, 0 at rest"),
+)
+
+# HalfCarEstimator: paper 002's observers on the half car (estimators/half_car_imm.py; its
+# ObserverSettings holds the same defaults, tests/test_half_car_estimator.py checks both agree)
+HALF_CAR_ESTIMATORS: dict[int, tuple[str, str]] = {
+    0: ("KF", "KF: one Kalman filter at m_s_nominal on a road of class road_class (the paper's KF)"),
+    1: ("AKF", "AKF: the KF with its road noise switched to the ISO class identified online"),
+    2: ("IMMKF", "IMMKF: interacting multiple model of imm_models Kalman filters at sprung masses evenly spread "
+                 "over imm_mass_min..imm_mass_max, on a road of class road_class"),
+    3: ("IMMAKF3", "IMMAKF3: one IMM of 3 mass sub-models (imm_mass_min, the middle, imm_mass_max) per road grade, "
+                   "the grade identified online in use"),
+    4: ("IMMAKF5", "IMMAKF5: as IMMAKF3 with 5 mass sub-models per grade (the paper's best; default)"),
+}
+HALF_CAR_SENSORS: dict[int, str] = {
+    0: "a real car: acc_body_front, acc_body_rear, acc_unsprung_front, acc_unsprung_rear, susp_deflection_front, "
+       "susp_deflection_rear (HalfCar's measured outputs)",
+    1: "the paper's: heave_velocity, pitch_rate, v_u_front, v_u_rear (absolute velocities, eq. 41)",
+}
+_VELOCITY_STD = (1e-6, 1e3)
+
+
+def _estimate_outputs(name: str, unit: str, text: str) -> list[Var]:
+    return [Var(f"{name}_est", "output", "Real", unit, None, f"estimated {text}"),
+            Var(f"{name}_std", "output", "Real", unit, None, f"1-sigma uncertainty of {name}_est (filter covariance)")]
+
+
+HALF_CAR_ESTIMATOR: tuple[Var, ...] = (
+    Var("estimator", "parameter", "Integer", None, 4, _codes_text(HALF_CAR_ESTIMATORS),
+        {k: name for k, (name, _) in HALF_CAR_ESTIMATORS.items()}),
+    Var("sensors", "parameter", "Integer", None, 0,
+        "the measurements the observer reads: " + "; ".join(f"{k} = {v}" for k, v in HALF_CAR_SENSORS.items()),
+        {k: v.split(":")[0] for k, v in HALF_CAR_SENSORS.items()}),
+    _real_param("m_s_nominal", "kg", HC.m_s, "sprung mass of the side the KF and AKF assume", VEHICLE_RANGES["m_s"]),
+    _real_param("imm_mass_min", "kg", HC.m_s - 200.0,
+                "estimator 2-4: sprung mass of the lightest sub-model (default: a side's payload -200 kg)",
+                VEHICLE_RANGES["m_s"]),
+    _real_param("imm_mass_max", "kg", HC.m_s + 200.0,
+                "estimator 2-4: sprung mass of the heaviest sub-model (above imm_mass_min)", VEHICLE_RANGES["m_s"]),
+    Var("imm_models", "parameter", "Integer", None, 5, "estimator 2: number of mass sub-models (the paper's IMMKF: 5)",
+        (2, 25)),
+    _real_param("imm_stay", "1", 0.999, "estimator 2-4: probability of keeping the sub-model per step (Markov "
+                "transition matrix: the rest shared equally among the others)", (0.0, 1.0, False, False)),
+    Var("road_class", "parameter", "Integer", None, 3,
+        "ISO class the KF and IMMKF assume, and the AKF and IMMAKF start from until a class is identified", _CLASSES),
+    Var("road_noise", "parameter", "Integer", None, 0,
+        "process noise of the road model: 0 = the ISO intensity of the class at the speed (eq. 5, exact at any step); "
+        "1 = the paper's eqs. 38-40 (eq. 40's road velocity per sample, fitted at 20 m/s)",
+        {0: "ISO intensity (eq. 5)", 1: "paper eqs. 38-40"}),
+    *(_half_car_param(v.name, v.unit, v.description) for v in HALF_CAR if v.name in HALF_CAR_RANGES),
+    _real_param("acc_sprung_noise_std", "m/s2", NOISE.acc_sprung,
+                "sensors 0: body accelerometer noise the observer assumes (sets R)",
+                NOISE_STD_RANGES["acc_sprung_noise_std"]),
+    _real_param("acc_unsprung_noise_std", "m/s2", NOISE.acc_unsprung,
+                "sensors 0: wheel accelerometer noise the observer assumes (sets R)",
+                NOISE_STD_RANGES["acc_unsprung_noise_std"]),
+    _real_param("defl_noise_std", "m", NOISE.deflection, "sensors 0: deflection-sensor noise the observer assumes "
+                "(sets R)", NOISE_STD_RANGES["defl_noise_std"]),
+    _real_param("velocity_noise_std", "m/s", 0.01, "sensors 1: noise of each velocity the observer assumes, the pitch "
+                "rate's in rad/s (sets R; the paper's R = 0.01^2)", _VELOCITY_STD),
+    *(Var(v.name, "input", "Real", v.unit, 0.0, v.description.replace("measured (with noise)", "sensors 0: measured"))
+      for v in HALF_CAR if v.name in ("acc_body_front", "acc_body_rear", "acc_unsprung_front", "acc_unsprung_rear",
+                                      "susp_deflection_front", "susp_deflection_rear")),
+    Var("heave_velocity", "input", "Real", "m/s", 0.0, "sensors 1: measured body velocity at the centre of gravity"),
+    Var("pitch_rate", "input", "Real", "rad/s", 0.0, "sensors 1: measured body pitch rate, nose up positive"),
+    Var("v_u_front", "input", "Real", "m/s", 0.0, "sensors 1: measured front wheel velocity"),
+    Var("v_u_rear", "input", "Real", "m/s", 0.0, "sensors 1: measured rear wheel velocity"),
+    Var("force_front", "input", "Real", "N", 0.0,
+        "front actuator force held over the step the measurements end (HalfCar's force_front), positive pushing body "
+        "and wheel apart", (-1e6, 1e6)),
+    Var("force_rear", "input", "Real", "N", 0.0, "rear actuator force held over the step (HalfCar's force_rear)",
+        (-1e6, 1e6)),
+    Var("vehicle_speed", "input", "Real", "m/s", 11.1111, "forward speed (sets the road noise)", _SPEED),
+    *_estimate_outputs("heave_velocity", "m/s", "body velocity at the centre of gravity"),
+    *_estimate_outputs("pitch_rate", "rad/s", "body pitch rate, nose up positive"),
+    *_estimate_outputs("v_u_front", "m/s", "front wheel velocity"),
+    *_estimate_outputs("v_u_rear", "m/s", "rear wheel velocity"),
+    *_estimate_outputs("susp_deflection_front", "m", "front suspension deflection: body point above the axle minus "
+                                                     "wheel, 0 at rest without actuator force"),
+    *_estimate_outputs("susp_deflection_rear", "m", "rear suspension deflection (as susp_deflection_front_est)"),
+    *_estimate_outputs("tire_deflection_front", "m", "front tyre deflection: wheel minus road, 0 at rest"),
+    *_estimate_outputs("tire_deflection_rear", "m", "rear tyre deflection: wheel minus road, 0 at rest"),
+    Var("road_height_front_est", "output", "Real", "m", None,
+        "estimated road under the front tyre relative to a level the filter lets go at eq. 5's 0.01 Hz pole (no "
+        "sensor sees the absolute level): from 0 at the start, good above about 1 Hz"),
+    Var("road_height_rear_est", "output", "Real", "m", None, "estimated road under the rear tyre (as the front's)"),
+    Var("sprung_mass_est", "output", "Real", "kg", None,
+        "estimated sprung mass of the side: the probability-weighted mass of the sub-models (estimator 2-4), "
+        "m_s_nominal for estimator 0 and 1"),
+    Var("sprung_mass_std", "output", "Real", "kg", None,
+        "spread of the sub-models' masses under their probabilities (0 for estimator 0 and 1)"),
+    Var("road_class_est", "output", "Integer", None, None,
+        "ISO 8608 class (1..8 = A..H) identified from the estimated front road over the last 102.4 m (road_class "
+        "until the first window is full); estimator 1, 3 and 4 switch the road noise with it"),
+    Var("mass_model", "output", "Integer", None, None,
+        "the most probable mass sub-model, 1 = the lightest (0 for estimator 0 and 1)"),
+    Var("mass_model_probability", "output", "Real", "1", None, "its probability (1 for estimator 0 and 1)"),
+    Var("status", "output", "Integer", None, None,
+        "0 = updated, 1 = a measurement of the sensor set was not finite: the step predicted only"),
+)
+
+# SuspensionController: the half car's active suspension (controllers/; docs/controller.md). The
+# mode codes are controllers/controller.py's MODES (a test checks that both list the same codes).
+CONTROLLER_MODES: dict[int, tuple[str, str]] = {
+    0: ("passive", "passive: no actuator force (the car's dampers c_f, c_r alone)"),
+    1: ("skyhook", "skyhook: f = -c_sky times the velocity of the body above each axle"),
+    2: ("LQR, weights scheduled",
+        "LQR of paper 002 (eqs. 10-14) designed at sprung_mass, its weights scheduled over vehicle_speed, road_class "
+        "and sprung_mass from the NSGA-II of eq. 17 on HalfCar's default car (default)"),
+    3: ("LQR, fixed weights", "the LQR designed at sprung_mass with the weights q1, q2, q3"),
+}
+_STATE = (-1e6, 1e6)  # any finite value
+# the car the controller designs for: HalfCar's parameters, its defaults
+_DESIGN_CAR = tuple(_half_car_param(v.name, v.unit, "the controller's model of the car: " + v.description)
+                    for v in HALF_CAR if v.name in HALF_CAR_RANGES)
+
+SUSPENSION_CONTROLLER: tuple[Var, ...] = (
+    Var("mode", "parameter", "Integer", None, 2, _codes_text(CONTROLLER_MODES),
+        {k: name for k, (name, _) in CONTROLLER_MODES.items()}),
+    _real_param("force_limit", "N", 3000.0,
+                "actuator force limit: each force is saturated at +-force_limit (default: 3 sigma of the scheduled "
+                "LQR's force on ISO D at 30 m/s is 2.8 kN)", (0.0, 1e6, False, True)),
+    _real_param("c_sky", "N.s/m", 3000.0,
+                "mode 1: skyhook damping at each axle (default: damping ratio 0.53 on the front corner, 398 kg on "
+                "20 kN/m)", (0.0, 1e6)),
+    _real_param("q1", "1", 2e7, "mode 3: LQR weight of each suspension deflection squared (m2), paper 002's q1 = q4 "
+                "(eq. 11); only the ratios of q1, q2, q3 matter", (0.0, 1e9)),
+    _real_param("q2", "1", 1000.0, "mode 3: LQR weight of each body acceleration squared above the axles ((m/s2)2), "
+                "q2 = q5; R^-1 needs q2 > 0", (0.0, 2000.0, False, True)),
+    _real_param("q3", "1", 1e-4, "mode 3: LQR weight of each tyre deflection squared (m2), q3 = q6 (the paper's "
+                "1e-4)", (0.0, 1e9)),
+    *_DESIGN_CAR,
+    Var("heave_velocity", "input", "Real", "m/s", 0.0,
+        "body velocity at the centre of gravity (HalfCar's heave_velocity, or an estimator's)", _STATE),
+    Var("pitch_rate", "input", "Real", "rad/s", 0.0, "body pitch rate, nose up positive", _STATE),
+    Var("v_u_front", "input", "Real", "m/s", 0.0, "front wheel velocity", _STATE),
+    Var("v_u_rear", "input", "Real", "m/s", 0.0, "rear wheel velocity", _STATE),
+    Var("susp_deflection_front", "input", "Real", "m", 0.0,
+        "front suspension deflection: body point above the axle minus wheel (HalfCar's susp_deflection_front_true)",
+        _STATE),
+    Var("susp_deflection_rear", "input", "Real", "m", 0.0, "rear suspension deflection (as the front's)", _STATE),
+    Var("tire_deflection_front", "input", "Real", "m", 0.0,
+        "front tyre deflection: wheel minus road (HalfCar's tire_deflection_front_true); never an absolute height",
+        _STATE),
+    Var("tire_deflection_rear", "input", "Real", "m", 0.0, "rear tyre deflection: wheel minus road", _STATE),
+    Var("vehicle_speed", "input", "Real", "m/s", 20.0, "forward speed: schedules the weights (mode 2)", _SPEED),
+    Var("road_class", "input", "Integer", None, 3,
+        "ISO 8608 class of the road, 1..8 = A..H (an estimator's road_class_est), 0 = not identified yet (taken as "
+        "C): schedules the weights (mode 2; E-H take D's)", {0: "not identified (C)", **_CLASSES}),
+    Var("sprung_mass", "input", "Real", "kg", HC.m_s,
+        "sprung mass of the side (an estimator's sprung_mass_est, or the truth): the LQR is designed for it "
+        "(modes 2, 3) and it schedules the weights (mode 2)", VEHICLE_RANGES["m_s"]),
+    Var("force_front", "output", "Real", "N", None,
+        "front actuator force after the limit, positive pushing body and wheel apart: HalfCar's force_front"),
+    Var("force_rear", "output", "Real", "N", None, "rear actuator force after the limit: HalfCar's force_rear"),
+    Var("force_front_demand", "output", "Real", "N", None, "front force the control law asks before the limit"),
+    Var("force_rear_demand", "output", "Real", "N", None, "rear force the control law asks before the limit"),
+    Var("saturated", "output", "Integer", None, None, "1 = the limit cut a demand at this step, 0 = it did not"),
+    Var("q1_used", "output", "Real", "1", None, "LQR weight q1 in use (0 in modes 0 and 1)"),
+    Var("q2_used", "output", "Real", "1", None, "LQR weight q2 in use (0 in modes 0 and 1)"),
+    Var("q3_used", "output", "Real", "1", None, "LQR weight q3 in use (0 in modes 0 and 1)"),
 )
 
 CONTRACTS: dict[str, tuple[Var, ...]] = {
@@ -438,15 +604,20 @@ CONTRACTS: dict[str, tuple[Var, ...]] = {
     "QuarterCar": QUARTER_CAR,
     "SuspensionEstimator": SUSPENSION_ESTIMATOR,
     "HalfCar": HALF_CAR,
+    "HalfCarEstimator": HALF_CAR_ESTIMATOR,
+    "SuspensionController": SUSPENSION_CONTROLLER,
 }
 
 # The longest communication step (s) each FMU takes; a longer one is refused (fmi2Discard)
 # before anything moves. The estimator's ISO class from the response band-passes up to 32 Hz,
 # which a step must resolve (32 Hz < 1 / (2 h)): 100 Hz logging is the coarsest the design aims
-# at. The road integrates the IRI over every 250 mm it passes: 1 s at 100 m/s is 400 of them.
-# The plants are exact for any step.
+# at; HalfCarEstimator identifies its class from the road up to 2 cycles/m (40 Hz at 20 m/s) and
+# takes the same limit. The road integrates the IRI over every 250 mm it passes: 1 s at 100 m/s is 400 of them.
+# The plants are exact for any step; the controller is a static gain (docs/controller.md: the
+# sampled loop with the scheduled LQR stays stable to 0.1 s).
 MAX_STEP: dict[str, float] = {"ISORoad": 1.0, "QuarterCar": math.inf, "SuspensionEstimator": 0.015,
-                              "HalfCar": math.inf}
+                              "HalfCar": math.inf, "HalfCarEstimator": 0.015,
+                              "SuspensionController": math.inf}
 
 
 def allowed_text(var: Var) -> str:
@@ -494,4 +665,6 @@ DEPENDENCIES: dict[str, dict[str, tuple[str, ...]]] = {
     "QuarterCar": {},
     "SuspensionEstimator": {},
     "HalfCar": {},
+    "HalfCarEstimator": {},
+    "SuspensionController": {},
 }
