@@ -169,17 +169,19 @@ class LinearKF:
             self._P_prior_ss, self._P_post_ss = self._ss
             self.K, self.S, self.SI = self._ss_gain
             if self._M is None:
-                # one matrix for the whole frozen step: [x_k; w_k] = M [x_{k-1}; z_k] with
-                # x_k = (I - K H) F x_{k-1} + K z_k and the whitened innovation
-                # w_k = L^-1 (z_k - H F x_{k-1}), S = L L', so that nis = |w_k|^2
+                # one matrix for the whole frozen step: [x_k; w_k; y_k] = M [x_{k-1}; z_k] with
+                # x_k = (I - K H) F x_{k-1} + K z_k, the innovation y_k = z_k - H F x_{k-1} and
+                # its whitened form w_k = L^-1 y_k, S = L L', so that nis = |w_k|^2
                 n, m = self.dim_x, self.dim_z
                 Li = np.linalg.inv(np.linalg.cholesky(self.S))
                 HF = self.H @ self.F
-                M = np.zeros((n + m, n + m))
+                M = np.zeros((n + 2 * m, n + m))
                 M[:n, :n] = (self._I - self.K @ self.H) @ self.F
                 M[:n, n:] = self.K
-                M[n:, :n] = -Li @ HF
-                M[n:, n:] = Li
+                M[n:n + m, :n] = -Li @ HF
+                M[n:n + m, n:] = Li
+                M[n + m:, :n] = -HF
+                M[n + m:, n:] = np.eye(m)
                 self._M, self._buf = M, np.zeros(n + m)
 
     def unfreeze(self) -> None:
@@ -221,7 +223,8 @@ class LinearKF:
             buf[n:] = z
             v = self._M @ buf
             self.x = v[:n]
-            w = v[n:]
+            w = v[n:n + self.dim_z]
+            self.y = v[n + self.dim_z:]
             self.nis = float(w @ w)
             self.P = self._P_post_ss
             return

@@ -18,6 +18,7 @@ from .model import DiscreteModel, ModelNoise, RoadModel
 from .response_class import ResponseClassifier
 from .road_class import RoadClassifier
 from .road_profile import Profiler, Unreference
+from .sensor_check import InnovationCheck
 from .standstill_bias import StandstillBias
 from .suspension import Blend, EstimatorConfig, SuspensionEstimator
 from .tuning import Tuning
@@ -29,4 +30,4 @@ STATE_CLASSES: tuple[type, ...] = (
     IMM, MassIMM, MovingMassIMM, IMMRoad, MovingIMMRoad, VBAKF, VBRoadFilter, NonlinearModel, EKF, UKF,
     FilterpyUKF, _FilterpyEKF, DualObserver, NonlinearRoadFilter, UKFRoadFilter, DualObserverFilter,
     Vehicle, IRIMeter, AirSpring, PiecewiseDamper, BumpStops, SensorErrors, DelayLine,
-    DistanceHighpass, StandstillBias, Unreference, Profiler)
+    DistanceHighpass, StandstillBias, Unreference, Profiler, InnovationCheck)

@@ -68,7 +68,7 @@ from scipy.signal import butter
 
 from ..plant import iso8608
 from ..plant.iri import SEGMENT_RANGE, IRIMeter
-from ..plant.profile_band import CUTOFF_RANGE, PROFILE_CUTOFF
+from ..plant.profile_band import CUTOFF_RANGE, PROFILE_CUTOFF, class_band_rms
 from ..plant.quarter_car import NOISE_STD_RANGES
 from ..plant.sensors import CALIBRATION_ALLOWANCE, SENSOR_ERROR_RANGES, DelayLine, SensorErrors
 from ..plant.step_size import same_step
@@ -84,6 +84,7 @@ from .model import (IVR, IVS, IVU, IZR, IZS, IZU, N_STATES, N_STATES_AVG, Discre
                     held_input_matrix, measurement_covariance)
 from .road_class import RoadClassifier
 from .road_profile import Profiler
+from .sensor_check import INCONSISTENT, InnovationCheck
 from .standstill_bias import LEARNED, StandstillBias
 from .steady_state import band_error_budget, reference_lag
 from .tuning import TUNING, TUNING_FIELDS, Tuning
@@ -93,7 +94,7 @@ OUTPUTS = ("road_height_est", "road_velocity_est", "road_height_std", "z_s_est",
            "z_u_est", "v_u_est", "susp_deflection_est", "tire_deflection_est", "sprung_mass_est", "mass_std",
            "road_class_est", "nis", "status", "iri_est")
 
-STATUS_OK, STATUS_REJECTED, STATUS_REINIT = 0, 1, 2
+STATUS_OK, STATUS_REJECTED, STATUS_REINIT, STATUS_SENSOR = 0, 1, 2, 3
 # the car's motion, from the speed each step (Tuning.standstill_speed): standing, the mass
 # regression is not fed and the road profile holds
 MOVING, STANDING = "moving", "standing"
@@ -384,6 +385,16 @@ class SuspensionEstimator:
         self._reference = (rm.f_ref, rm.zeta_ref) if self.composed is None and rm.f_ref > 0 else None
         self.profile = Profiler(cfg.profile_cutoff, self._reference)
         self._gap_profile = Profiler(cfg.profile_cutoff, self._reference)  # of _start_output's gap
+        # self-diagnosis (sensor_check.py) of the linear filters; MME&KF's model-error injection
+        # is not in the check's error responses. The check allows at least the default calibration
+        # errors: on ideal sensors the exact model's deflection innovations reach 1.9-3.1 x S over
+        # 1 s windows (ISO C at 40, D at 80 km/h), which only the allowance's share explains
+        gain_std, delay_std = (max(getattr(cfg, k), CALIBRATION_ALLOWANCE[k][0])
+                               for k in ("calibration_gain_std", "calibration_delay_std"))
+        self.check = (InnovationCheck(dim_z, 2, gain_std, delay_std,
+                                      cfg.tuning.diagnosis_window, cfg.tuning.diagnosis_limit,
+                                      cfg.tuning.diagnosis_hold * cfg.profile_cutoff, cfg.tuning.diagnosis_start)
+                      if cfg.road_estimator != 1 else None)
         self._band_cache: tuple | None = None  # (model, class, ratio): see _band_ratio
         self.model: DiscreteModel | None = None
         self._model_key: tuple | None = None
@@ -815,6 +826,9 @@ class SuspensionEstimator:
                 kf.restore(x_prev, P_prev, st_prev)
                 valid = self._channel_ok(z)
                 outliers = True
+        if all_live and not outliers and self.check is not None:
+            self.check.update(kf.y, kf.S, z - kf.y, kf.F, kf.K, kf.H, h,
+                              abs(speed) * h if self.motion == MOVING else 0.0)
         if valid is not None and not valid.all():
             status = STATUS_REJECTED
             kf.predict_only()  # (MME&KF: no model-error injection without all channels)
@@ -954,7 +968,8 @@ class SuspensionEstimator:
         out["mass_std"] = float(self.mass_est.mass_std(h)) if self.mass_est is not None else 0.0
         out["road_class_est"] = int(self.classifier.road_class)
         out["nis"] = float(kf.nis)  # of the last update (kept through rejected steps)
-        out["status"] = status
+        fault = self.check is not None and self.check.state == INCONSISTENT
+        out["status"] = STATUS_SENSOR if fault and status != STATUS_REINIT else status
         # a covariance that rounding has taken to 0 or below (or past the floats) claims nothing:
         # an infinite std, never a small one (seen on a 1 kg wheel damped at 1e5 N.s/m). Once the
         # anchor is dropped the band ratio takes the force errors as zero (the vehicle the
@@ -964,6 +979,13 @@ class SuspensionEstimator:
         band_var = (p_zr * self._band_ratio() * (cfg.tuning.nonlinear_std_factor ** 2 if self._nonlinear else 1.0)
                     + start_var if p_zr > 0.0 else math.inf)
         self._profile(out, x[IZR], speed, h, band_var, status)
+        if fault:
+            # the filter's covariance no longer describes its error: what is known without the
+            # sensors, |error| <= |estimate| + |profile|, the profile within 2 x the band rms of
+            # the roughest class in sight on 95 % of samples
+            cls = max(self.assumed_class, self.classifier.road_class)
+            out["road_height_std"] = max(out["road_height_std"], abs(out["road_height_est"])
+                                         + class_band_rms(cls, cfg.profile_cutoff))
         out["iri_est"] = self.iri.update(self.distance, out["road_height_est"])
         return out
 

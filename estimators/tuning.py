@@ -110,6 +110,23 @@ class Tuning:
     # innovation variance; after it the actual (grown) variance, so that a channel the filter
     # itself has drifted away from is taken back
     gate_hold: float = 0.1
+    # Self-diagnosis (sensor_check.py): the innovations' variance over that of the model and the
+    # calibration allowance, averaged over diagnosis_window s, above diagnosis_limit on a channel
+    # = an error the filter cannot absorb (status 3). On the cores (ISO C at 40, D at 80 km/h)
+    # every sensor error at the end of its range, and all together, stayed below 0.9 (ideal
+    # sensors 0.35) and the linear vehicles of the robustness grid below 1.41 (c_s -30 %, ISO D);
+    # a dead or sign-flipped channel, a body skew of 10 ms, wheel or deflection skews of 6-10 ms,
+    # biases of 2-3 m/s2 and a 20 % wheel gain error gave 2.1-55, the air-spring plant on ISO D
+    # and E 4-5.2 (docs/real-sensors.md). The check starts diagnosis_start s into the run, once
+    # the filter has absorbed the offsets and biases it can absorb.
+    diagnosis_window: float = 1.0
+    diagnosis_limit: float = 2.0
+    diagnosis_start: float = 3.0
+    # status 3 is held until the car has gone this many profile_cutoff lengths with the ratios back
+    # below the limit: after a body-accelerometer bias stepping by 1 m/s2 (ISO C, 40 km/h) the
+    # profile's error was 0.47-0.67 m for 4 s, 70 mm 8 s (one cut-off length) after the ratio fell
+    # back and 6-16 mm for 10 s more, while the force-bias state took the bias up
+    diagnosis_hold: float = 3.0
     frozen_time: float = 0.05  # s a channel may repeat its value bit for bit before it is rejected
     # The road filter starts at the stationary covariance of its model (DARE), again whenever the
     # model is rebuilt or the filter re-initialised, and keeps its gain frozen there (kalman.py);
@@ -153,6 +170,9 @@ class Tuning:
                 check_range("force_bias_q", float(self.force_bias_q), 0.0, 1e12),
                 check_range("force_bias_tau", float(self.force_bias_tau), 0.01, 1e4),
                 check_range("nonlinear_std_factor", float(self.nonlinear_std_factor), 1.0, 10.0),
+                check_range("diagnosis_window", float(self.diagnosis_window), 0.01, 60.0),
+                check_range("diagnosis_limit", float(self.diagnosis_limit), 1.0, 1e6),
+                check_range("diagnosis_hold", float(self.diagnosis_hold), 0.0, 100.0),
                 check_range("default_class", self.default_class, 1, 8),
                 check_range("q_class_min", self.q_class_min, 1, 8)]
         return [m for m in msgs if m]

@@ -29,6 +29,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from . import iso8608
+
 PROFILE_CUTOFF = 91.44  # m, 300 ft
 PROFILE_ORDER = 3
 CUTOFF_RANGE = (1.0, 10000.0)  # m
@@ -42,6 +44,15 @@ def band_response(n: np.ndarray, cutoff: float = PROFILE_CUTOFF) -> np.ndarray:
 
 
 @lru_cache(maxsize=16)
+def class_band_rms(road_class: int, cutoff: float = PROFILE_CUTOFF) -> float:
+    """m: the rms in the band of a road at the upper limit of ISO 8608 class ``road_class``
+    (1..8 = A..H: Gd(n0) twice the class's geometric mean), waviness 2:
+    integral of Gd(n0) (n0 / n)^2 |H(n)|^2 dn over n > 0 = (pi / 3) Gd(n0) n0^2 cutoff,
+    since the integral of u^4 / (1 + u^6) du over u > 0 is pi / 3."""
+    gd = 2.0 * iso8608.class_psd_n0(road_class)
+    return math.sqrt(math.pi / 3.0 * gd * iso8608.N0 ** 2 * cutoff)
+
+
 def _eigen(w: float) -> tuple:
     """(eigenvalues, V^-1) of the companion matrix of D(p) (``DistanceHighpass``): its
     eigenvectors are (1, l, l^2), so row i of V^-1 holds the coefficients of the Lagrange

@@ -41,7 +41,7 @@ def estimate(meas, v, **kw) -> dict[str, np.ndarray]:
     est = SuspensionEstimator(**kw)
     rows = [dict(est.step(*z, sp, H)) for z, sp in zip(meas, v)]  # step returns one dict, refilled
     out = {k: np.array([r[k] for r in rows]) for k in ("road_height_est", "road_height_std", "z_u_est",
-                                                        "tire_deflection_est")}
+                                                        "tire_deflection_est", "status", "nis")}
     out["filter_road"] = out["z_u_est"] - out["tire_deflection_est"]  # the filter's, before the band
     return out
 

@@ -159,7 +159,9 @@ def test_default_on_the_air_spring_plant_told_only_its_linearisation():
 
 def test_the_std_once_the_anchor_is_dropped_is_the_force_error_filters_times_the_factor():
     """Tuning.nonlinear_std_factor scales road_height_std only where the anchor is dropped (the
-    air-spring plant), and never the estimate; on the linear plant it changes nothing."""
+    air-spring plant), and never the estimate; on the linear plant it changes nothing. (On ISO D the
+    air-spring car's body innovations exceed what the linear model explains, status 3 with its own
+    std: the self-diagnosis is set off here, tests/test_sensor_check.py has it.)"""
     from suspension_estimation.plant.nonlinear_car import NonlinearQuarterCar
     from suspension_estimation.plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_DAMPER
 
@@ -174,7 +176,7 @@ def test_the_std_once_the_anchor_is_dropped_is_the_force_error_filters_times_the
     told = dict(m_u=lin.m_u, k_s=lin.k_s, k_t=lin.k_t, c_s=lin.c_s)
     runs = {}
     for f in (1.0, 1.2, 3.0):
-        est = SuspensionEstimator(nonlinear_std_factor=f, **told)
+        est = SuspensionEstimator(nonlinear_std_factor=f, diagnosis_limit=1e6, **told)
         out = np.array([[o["road_height_est"], o["road_height_std"]]
                         for o in (est.step(z[0], z[1], z[2], SPEED, H) for z in meas)])
         assert not est.anchor_trusted  # dropped at about 2.2 s

@@ -340,7 +340,11 @@ SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
         "ISO 8608 class identified online (1..8 = A..H), 0 until enough road has been seen"),
     Var("nis", "output", "Real", "1", None, "normalised innovation squared of the last update (filter health)"),
     Var("status", "output", "Integer", None, None,
-        "0 = ok, 1 = last measurement rejected (non-finite or outlier), 2 = filter re-initialised"),
+        "0 = ok, 1 = last measurement rejected (non-finite or outlier), 2 = filter re-initialised, "
+        "3 = the innovations show an error the filter cannot absorb (a sensor far outside its calibration "
+        "allowance, a dead channel, or a suspension far from the model): road_height_std is then "
+        "|road_height_est| plus the band rms of the roughest ISO class in sight, held for 3 profile_cutoff "
+        "lengths after the innovations are back (road_estimator 0 and 2)"),
     # the known calibration of the sensors (plant/sensors.py); at the end, so that the value references stay
     *_sensor_params(plant=False),
     _real_param("profile_cutoff", "m", PROFILE_CUTOFF,

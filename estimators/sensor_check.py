@@ -1,0 +1,91 @@
+"""Self-diagnosis of the road filter: are its innovations what the model and the sensors'
+calibration allowance explain?
+
+A Kalman filter's innovation y_k = z_k - H x_k|k-1 has covariance S = H P H' + R when the model
+and the sensors are what the filter assumes. A sensor error the filter cannot absorb (a bias far
+beyond its range, a skew of many milliseconds, a dead channel, a scale error of tens of %) makes
+the innovations larger than S says. Errors within the calibration allowance that road_height_std
+already covers (``calibration_gain_std``, ``calibration_delay_std``) make them larger too, through
+the filter: a delay on one channel shows mostly in another channel's innovation. So the expected
+innovation variance of each channel i is
+
+    s_i = S_ii + sigma_t^2 sum_j (G_ij [-dz_j/dt])^2 + sigma_g^2 sum_{j accel.} (G_ij [z_j])^2,
+
+where G_ij is the steady filter's response of innovation i to an error on channel j
+(dx_k = F dx_k-1 + K dy_k, dy_k = e_k - H F dx_k-1), driven by the filter's prediction of the
+channel (H x_k|k-1, the signal without the sensor noise) for a gain error and by its rate for a
+delay; sigma_t (s) and sigma_g (1) are the allowance's delay and gain stds.
+
+The check compares the ratio r_i = <y_i^2> / <s_i> (both averaged exponentially over ``window`` s)
+with ``limit``: above it on any channel the filter is ``INCONSISTENT``, and stays so until the
+ratios are back below it and the car has travelled ``hold`` metres more (the filter's states
+take up what is left of the error slowly, and the profile's high-pass carries it further). The
+numbers behind the limit and the hold are in tuning.py (``diagnosis_*``) and docs/real-sensors.md.
+What the test cannot see: errors the filter's states absorb whole, a deflection offset (the
+default filter's force-bias state takes it as a force: tests/test_sensor_check.py) and a
+body-accelerometer gain error (the mass takes it up); and it cannot tell a sensor error from a
+suspension far from the model (the air-spring plant on ISO D).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+CONSISTENT, INCONSISTENT = "consistent", "inconsistent"
+
+
+class InnovationCheck:
+    """The innovation test of the module doc for a filter with ``dim_z`` channels, of which the
+    first ``n_acc`` are accelerometers (gain errors); ``gain_std`` (1) and ``delay_std`` (s) the
+    allowance, ``window`` (s) the averaging time, ``limit`` the ratio, ``hold`` (m) the distance
+    the state stays inconsistent after the ratios are back."""
+
+    def __init__(self, dim_z: int, n_acc: int, gain_std: float, delay_std: float, window: float,
+                 limit: float, hold: float, start: float = 0.0):
+        self.dim_z, self.n_acc = dim_z, n_acc
+        self.gain_var, self.delay_var = gain_std ** 2, delay_std ** 2
+        self.window, self.limit, self.hold, self.start = window, limit, hold, start
+        self.reset()
+
+    def reset(self) -> None:
+        self.state = CONSISTENT
+        self.ratio = np.zeros(self.dim_z)
+        self._num = np.zeros(self.dim_z)
+        self._den = np.zeros(self.dim_z)
+        self._dx = None  # the error responses, one column per error source
+        self._last = None  # the previous prediction H x_k|k-1
+        self._age = 0.0  # s averaged so far
+        self._clear = math.inf  # m travelled since the ratios were last above the limit
+
+    def update(self, y: np.ndarray, S: np.ndarray, prediction: np.ndarray, F: np.ndarray, K: np.ndarray,
+               H: np.ndarray, h: float, ds: float) -> str:
+        """One full update: its innovation ``y``, covariance ``S``, the filter's prediction of the
+        measurement H x_k|k-1, the filter's F, K, H, the step ``h`` (s) and the distance ``ds``
+        (m) travelled in it. Returns the state."""
+        m = self.dim_z
+        e = np.zeros((m, m + self.n_acc))
+        if self._last is not None:
+            e[np.arange(m), np.arange(m)] = -(prediction - self._last) / h
+        e[np.arange(self.n_acc), m + np.arange(self.n_acc)] = prediction[:self.n_acc]
+        self._last = prediction
+        if self._dx is None or self._dx.shape[0] != F.shape[0]:
+            self._dx = np.zeros((F.shape[0], e.shape[1]))
+        dy = e - H @ (F @ self._dx)
+        self._dx = F @ self._dx + K @ dy
+        dy2 = dy * dy
+        allow = self.delay_var * dy2[:, :m].sum(axis=1) + self.gain_var * dy2[:, m:].sum(axis=1)
+        a = min(1.0, h / self.window)
+        self._num += a * (y * y - self._num)
+        self._den += a * (np.diag(S) + allow - self._den)
+        self._age += h
+        if self._age < max(self.window, self.start):
+            return self.state
+        self.ratio = self._num / self._den
+        if np.max(self.ratio) > self.limit:
+            self.state, self._clear = INCONSISTENT, 0.0
+        else:
+            self._clear += ds
+            if self._clear >= self.hold:
+                self.state = CONSISTENT
+        return self.state
