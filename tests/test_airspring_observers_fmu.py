@@ -45,7 +45,9 @@ def test_observers_told_the_maps_track_the_road_and_the_mass_through_the_fmus(di
     assert m[0] > 480.0 and abs(m[-1] / 410.0 - 1) < 0.08, (m[0], m[-1])
     assert s["dual"]["err_std_hp_pct"] < 10.0, s["dual"]
     for n in est:
-        assert np.isfinite(r[f"{n}.road_height_std"]).all() and (r[f"{n}.status"] == 0).all()
+        assert np.isfinite(r[f"{n}.road_height_std"]).all()
+        # the linear KF's innovations show the mean force its model lacks: status 3
+        assert (r[f"{n}.status"] == 0).all() if n != "kf_linear" else r[f"{n}.status"][-1] == 3
 
 
 @pytest.mark.parametrize("params", [
