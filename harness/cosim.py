@@ -36,6 +36,7 @@ _TYPES = ("Real", "Integer", "Boolean")  # what can be wired and recorded; Strin
 
 # An input of the system: a constant, a function of time (s), or one value per step.
 InputValue = float | int | bool | Callable[[float], float] | np.ndarray
+GAUSS_SEIDEL, JACOBI = "gauss-seidel", "jacobi"  # CoSimulation(coupling=...)
 
 
 class SimulationError(RuntimeError):
@@ -239,8 +240,10 @@ class _Instance:
         vr = (fmi2ValueReference * n)(*vrs)
         val = ({"Real": fmi2Real, "Integer": fmi2Integer, "Boolean": fmi2Boolean}[vtype] * n)()
 
+        whole = vtype != "Real"  # a system input's table holds floats
+
         def set_values(_vrs, values) -> None:
-            val[:] = values
+            val[:] = [int(v) for v in values] if whole else values
             status = c_fun(fmu.component, vr, n, val)
             if status > 1:
                 raise FMICallException(function=name, status=status)
@@ -286,6 +289,10 @@ class CoSimulation:
                 function of time (s) sampled at each step start, or an array with one value
                 per step (length = number of steps)
     record      ``"instance.variable"`` names to record (Real, Integer or Boolean)
+    coupling    GAUSS_SEIDEL (default: each FMU, in the system's order, steps on the outputs its
+                predecessors wrote this step) or JACOBI (every FMU on the values of the previous
+                communication point, as FMPy's SSP runner and libcosim do: every connection lags
+                a step)
 
     Use as a context manager (or call ``close()``): the FMUs are freed and their extracted
     files removed.
@@ -293,8 +300,11 @@ class CoSimulation:
 
     def __init__(self, system: System, parameters: Mapping[str, object] | None = None,
                  inputs: Mapping[str, InputValue] | None = None, record: Sequence[str] = (),
-                 start_time: float = 0.0):
+                 start_time: float = 0.0, coupling: str = "gauss-seidel"):
         self.system = system
+        if coupling not in (GAUSS_SEIDEL, JACOBI):
+            raise ValueError(f"coupling = {coupling!r} must be {GAUSS_SEIDEL!r} or {JACOBI!r}")
+        self.coupling = coupling
         self.parameters = dict(parameters or {})
         self.inputs = dict(inputs or {})
         self.record = list(dict.fromkeys(record))
@@ -445,6 +455,8 @@ class CoSimulation:
         the wiring buffer, steps, and writes its outputs there. Returns (instance, why) if one
         refused the step, else None."""
         buf = self._buf
+        if self.coupling == JACOBI:
+            return self._step_jacobi(order, t, h)
         for inst in order:
             for setter, vrs, idx in inst.sets:
                 setter(vrs, [buf[i] for i in idx])
@@ -452,6 +464,24 @@ class CoSimulation:
                 inst.do_step(t, h)
             except FMICallException as e:
                 return inst, f"refused the step ({STATUS[e.status]})"
+            for getter, vrs, idx in inst.gets:
+                for i, v in zip(idx, getter(vrs)):
+                    buf[i] = v
+        return None
+
+    def _step_jacobi(self, order: list[_Instance], t: float, h: float) -> tuple[_Instance, str] | None:
+        """One Jacobi step: every instance reads its inputs, then every instance steps, then every
+        instance writes its outputs."""
+        buf = self._buf
+        for inst in order:
+            for setter, vrs, idx in inst.sets:
+                setter(vrs, [buf[i] for i in idx])
+        for inst in order:
+            try:
+                inst.do_step(t, h)
+            except FMICallException as e:
+                return inst, f"refused the step ({STATUS[e.status]})"
+        for inst in order:
             for getter, vrs, idx in inst.gets:
                 for i, v in zip(idx, getter(vrs)):
                     buf[i] = v

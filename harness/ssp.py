@@ -10,8 +10,15 @@ Systems (component names are the model identifiers, so records read ``ISORoad.ro
 - ``RoadPlantEstimator.ssp``: the above, plus QuarterCar.acc_sprung / acc_unsprung /
   susp_deflection -> SuspensionEstimator inputs of the same names
 
-In both, ``vehicle_speed`` (m/s) is an input of the system feeding ISORoad (and
-SuspensionEstimator). libcosim (the Open Simulation Platform's SSP loader) accepts no
+- ``HalfCarLoop.ssp``: paper 002's closed loop, ISORoad.road_height / road_height_rear ->
+  HalfCar, HalfCar's measured outputs -> HalfCarEstimator, HalfCarEstimator's ``*_est`` and
+  ``road_class_est`` -> SuspensionController, its forces -> HalfCar and HalfCarEstimator. The
+  controller's ``sprung_mass`` is not wired, as the plant's is not (below): it keeps its start
+  value, HalfCar's 672 kg. The harness's loop (``harness.studies.paper002``) adds
+  ``sprung_mass_est`` -> ``sprung_mass``.
+
+In all, ``vehicle_speed`` (m/s) is an input of the system feeding ISORoad (and the estimator,
+and the controller). libcosim (the Open Simulation Platform's SSP loader) accepts no
 connection from a connector of the system itself (it requires ``startElement``, which SSP 1.0
 leaves out for one), so such inputs are not written as connectors and connections: an
 annotation of type ``INPUTS_ANNOTATION`` lists them, and ``read_ssp`` turns them back into the
@@ -49,6 +56,12 @@ register_namespace("inputs", INPUTS_NS)
 
 ROAD_PLANT = "RoadPlant"
 ROAD_PLANT_ESTIMATOR = "RoadPlantEstimator"
+HALF_CAR_LOOP = "HalfCarLoop"
+# the controller's relative states (controllers.lqr.STATES), HalfCarEstimator's "<name>_est"
+HALF_CAR_STATES = ("heave_velocity", "pitch_rate", "v_u_front", "v_u_rear", "susp_deflection_front",
+                   "susp_deflection_rear", "tire_deflection_front", "tire_deflection_rear")
+HALF_CAR_MEASURED = ("acc_body_front", "acc_body_rear", "acc_unsprung_front", "acc_unsprung_rear",
+                     "susp_deflection_front", "susp_deflection_rear")
 
 # system name -> (components in stepping order, connections, outputs declared as connectors)
 SYSTEMS: dict[str, tuple[list[str], list[tuple[str, str]], dict[str, list[str]]]] = {
@@ -73,6 +86,26 @@ SYSTEMS: dict[str, tuple[list[str], list[tuple[str, str]], dict[str, list[str]]]
                         "tire_deflection", "tire_force"],
          "SuspensionEstimator": ["road_height_est", "road_velocity_est", "road_height_std", "sprung_mass_est",
                                  "road_class_est", "nis", "status"]},
+    ),
+    HALF_CAR_LOOP: (
+        ["ISORoad", "HalfCar", "HalfCarEstimator", "SuspensionController"],
+        [("vehicle_speed", "ISORoad.vehicle_speed"),
+         ("vehicle_speed", "HalfCarEstimator.vehicle_speed"),
+         ("vehicle_speed", "SuspensionController.vehicle_speed"),
+         ("ISORoad.road_height", "HalfCar.road_height_front"),
+         ("ISORoad.road_height_rear", "HalfCar.road_height_rear"),
+         *((f"HalfCar.{m}", f"HalfCarEstimator.{m}") for m in HALF_CAR_MEASURED),
+         *((f"SuspensionController.{f}", f"{c}.{f}") for c in ("HalfCar", "HalfCarEstimator")
+           for f in ("force_front", "force_rear")),
+         *((f"HalfCarEstimator.{s}_est", f"SuspensionController.{s}") for s in HALF_CAR_STATES),
+         ("HalfCarEstimator.road_class_est", "SuspensionController.road_class")],
+        {"ISORoad": ["distance"],
+         "HalfCar": ["heave_velocity", "pitch_rate", "v_u_front", "v_u_rear", "acc_body_front_true",
+                     "acc_body_rear_true", "susp_deflection_front_true", "susp_deflection_rear_true",
+                     "tire_deflection_front_true", "tire_deflection_rear_true", "tire_force_front",
+                     "tire_force_rear"],
+         "HalfCarEstimator": ["sprung_mass_est", "status"],
+         "SuspensionController": ["saturated"]},
     ),
 }
 
@@ -181,8 +214,8 @@ def write_ssp(path: Path, name: str, components: dict[str, Path], connections: l
 
 
 def write_system_ssps(dist: Path) -> list[Path]:
-    """Write ``RoadPlant.ssp`` (and ``RoadPlantEstimator.ssp`` if ``SuspensionEstimator.fmu`` exists)
-    into ``dist`` from the FMUs there. Returns the files written."""
+    """Write ``<name>.ssp`` of every system of ``SYSTEMS`` whose FMUs are all in ``dist``, from those
+    FMUs (``RoadPlant.ssp`` needs only ISORoad and QuarterCar). Returns the files written."""
     dist = Path(dist)
     written = []
     for name, (order, connections, outputs) in SYSTEMS.items():

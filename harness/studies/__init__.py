@@ -27,6 +27,9 @@ STUDIES = {  # --study NAME: ("module:object" under harness.studies, what it run
     "vb": ("vb:VB_STUDY", "paper 004: VB-AKF ARMSE by Monte Carlo (no FMU); a loosening sensor mount (FMU)"),
     "paper003": ("paper003:PAPER003",
                  "paper 003: EKF, UKF, dual state + mass observer, air-spring plant, ISO A-C, 10 m/s"),
+    "paper002": ("paper002:PAPER002",
+                 "paper 002: its closed loop on the Fig. 6 scenario, passive, LQR on true states and on each "
+                 "observer, 10 ms (alone: 1 seed, 200 s)"),
     "imm": ("imm:IMM",
             "paper 002: IMM mass, its Fig. 6 scenario (4 x 50 s), off its mass grid, damping 20 % off"),
     "sensors": ("sensors:SENSORS",

@@ -27,7 +27,8 @@ from .runner import (CLASS_LETTERS, DIST, NOISE_SEED_OFFSET, OUT, RunSpec, Study
 
 DEFAULT_STUDIES = ("table2", "mass")  # without --study; --study10ms and --class-study N add theirs
 CHECKPOINT = "runs.jsonl"  # in ``out``: one JSON line per finished run
-FMUS = ("ISORoad.fmu", "QuarterCar.fmu", "SuspensionEstimator.fmu")
+FMUS = ("ISORoad.fmu", "QuarterCar.fmu", "SuspensionEstimator.fmu", "HalfCar.fmu", "HalfCarEstimator.fmu",
+        "SuspensionController.fmu")
 
 
 def spec_key(spec: dict) -> str:
