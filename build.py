@@ -18,8 +18,8 @@ schedule of the half car's controller (controllers/data/lqr_schedule.json, bundl
 controllers/) is regenerated the same way by controllers.schedule_train, with pymoo's NSGA-II
 and a fixed seed, when its sources or pymoo changed or the file was edited; the file itself
 records what it was trained from (tests/test_controller.py). With all the
-FMUs built, it also writes the fmucontainer wiring file SuspensionSystem.csv and builds the
-container FMU SuspensionSystem.fmu from it (harness/container.py). An FMU is rebuilt only when
+FMUs built, it also writes the fmucontainer wiring files and builds the container FMUs from them
+(harness/container.py: SuspensionSystem.fmu, HalfCarSystem.fmu). An FMU is rebuilt only when
 its sources, the private name or the build options changed: a hash of them per FMU is kept in
 dist/.build-stamps.json (``--force`` rebuilds all). Exits non-zero with the reason if a build
 fails.
@@ -227,23 +227,25 @@ def schedule_if_changed(force: bool = False) -> tuple[Path, bool]:
     return write_schedule(out), True
 
 
-def build_container_if_changed(dist: Path, force: bool = False) -> tuple[Path, bool]:
-    """``dist/SuspensionSystem.fmu`` from the three FMUs it wires (harness/container.py), rebuilt
-    only when one of them, container.py or fmu-manipulation-toolbox changed. Returns (file, rebuilt)."""
-    from suspension_estimation.harness.container import CONTAINER, build_container
-    from suspension_estimation.harness.ssp import ROAD_PLANT_ESTIMATOR, SYSTEMS
+def build_container_if_changed(dist: Path, name: str = "SuspensionSystem", force: bool = False) -> tuple[Path, bool]:
+    """``dist/<name>.fmu``, a container of harness/container.py's CONTAINERS, from the FMUs it
+    wires, rebuilt only when one of them, container.py, ssp.py (the wiring) or fmu-manipulation-
+    toolbox changed. Returns (file, rebuilt)."""
+    from suspension_estimation.harness.container import CONTAINERS, build_container
+    from suspension_estimation.harness.ssp import SYSTEMS
 
+    container = CONTAINERS[name]
     stamps = read_stamps(dist)
-    wired = SYSTEMS[ROAD_PLANT_ESTIMATOR][0]
-    key = source_hash([ROOT / "harness" / "container.py"],
+    wired = SYSTEMS[container.system][0]
+    key = source_hash([ROOT / "harness" / "container.py", ROOT / "harness" / "ssp.py"],
                       {"fmus": [stamps.get(n) for n in wired], "toolbox": _version("fmu-manipulation-toolbox")})
-    out = dist / f"{CONTAINER}.fmu"
-    if not force and out.is_file() and stamps.get(CONTAINER) == key:
+    out = dist / f"{name}.fmu"
+    if not force and out.is_file() and stamps.get(name) == key:
         return out, False
-    stamps.pop(CONTAINER, None)
+    stamps.pop(name, None)
     write_stamps(dist, stamps)
-    out = build_container(dist)
-    stamps[CONTAINER] = key
+    out = build_container(dist, container=container)
+    stamps[name] = key
     write_stamps(dist, stamps)
     return out, True
 
@@ -372,8 +374,11 @@ def main(argv: list[str] | None = None) -> int:
         for p in write_system_ssps(args.dist):
             print(f"wrote {p.name}")
         if len(built) == len(FMUS):
-            out, rebuilt = build_container_if_changed(args.dist, force=args.force)
-            print(f"wrote {out.with_suffix('.csv').name}, built {out.name}" if rebuilt else f"{out.name} is up to date")
+            from suspension_estimation.harness.container import CONTAINERS
+
+            for name in CONTAINERS:
+                out, rebuilt = build_container_if_changed(args.dist, name, force=args.force)
+                print(f"wrote {out.with_suffix('.csv').name}, built {out.name}" if rebuilt else f"{out.name} is up to date")
     except Exception as e:  # noqa: BLE001 - one line for the user, non-zero exit
         print(f"build failed: {type(e).__name__}: {e}", file=sys.stderr)
         return 1

@@ -1,6 +1,14 @@
-"""``SuspensionSystem.fmu``: ISORoad -> QuarterCar -> SuspensionEstimator in one FMI 2.0
-co-simulation FMU, built by fmu-manipulation-toolbox's ``fmucontainer`` (a native C master that
-loads the three FMUs inside it) from a wiring file that ``build.py`` writes next to it.
+"""The container FMUs, each a system of ``harness.ssp.SYSTEMS`` in one FMI 2.0 co-simulation FMU,
+built by fmu-manipulation-toolbox's ``fmucontainer`` (a native C master that loads the FMUs inside
+it) from a wiring file that ``build.py`` writes next to it (``CONTAINERS``):
+
+- ``SuspensionSystem.fmu``: ISORoad -> QuarterCar -> SuspensionEstimator (below);
+- ``HalfCarSystem.fmu``: paper 002's closed loop ISORoad -> HalfCar <- SuspensionController <-
+  HalfCarEstimator (``HalfCarLoop.ssp``), its container inputs ``vehicle_speed``, ``sprung_mass``
+  (HalfCar's payload and the mass the controller designs for) and HalfCarEstimator's velocity
+  inputs (the paper's sensors, ``"HalfCarEstimator.heave_velocity"``, ...). The controller steps
+  after the plant, so the plant gets each force a step after the controller computed it, as in
+  the harness.
 
 The wiring is the one of ``RoadPlantEstimator.ssp`` (``harness.ssp.SYSTEMS``):
 
@@ -14,8 +22,9 @@ The wiring is the one of ``RoadPlantEstimator.ssp`` (``harness.ssp.SYSTEMS``):
   (``ISORoad.road_class``, ``QuarterCar.noise_seed``, ...), with the FMUs' start values.
 
 The FMUs step sequentially in that order, each with the outputs the ones before it computed in
-this step (``-sequential``: no connection lags a step), with an internal step of 1 ms, so the
-container reproduces the harness (``harness.cosim``) exactly. Equivalent command line:
+this step (``-sequential``: no connection lags a step but one back to an FMU stepped earlier), with
+an internal step of 1 ms, so the container reproduces the harness (``harness.cosim``, Gauss-Seidel)
+exactly. Equivalent command line:
 
     fmucontainer -container SuspensionSystem.csv:0.001 -fmu-directory dist -sequential \\
                  -no-auto-input -no-auto-output -no-auto-link
@@ -30,22 +39,44 @@ from __future__ import annotations
 
 import logging
 import zipfile
+from dataclasses import dataclass
 from pathlib import Path
 from xml.etree.ElementTree import Element, SubElement, fromstring, indent, tostring
 
 from fmpy import read_model_description
 
-from .ssp import ROAD_PLANT_ESTIMATOR, SYSTEMS
-
-CONTAINER = "SuspensionSystem"
-STEP = 1e-3  # s, internal step of the container
-INPUTS = {"QuarterCar.sprung_mass": "sprung_mass"}  # FMU inputs no connection feeds -> container input
+from .ssp import HALF_CAR_LOOP, ROAD_PLANT_ESTIMATOR, SYSTEMS
 
 
-def wiring(dist: Path) -> list[tuple[str, str, str, str, str]]:
+@dataclass(frozen=True)
+class Container:
+    """One container FMU: its name, the system it wires (``harness.ssp.SYSTEMS``), its internal
+    step (s), the container input of each FMU input no connection feeds, and for a closed loop
+    the FMUs at which fmucontainer cuts its loops at initialization (they start on their inputs'
+    start values, as in the harness; fmucontainer warns, and any other warning is an error)."""
+
+    name: str
+    system: str
+    step: float
+    inputs: dict[str, str]
+    loop_cuts: tuple[str, ...] = ()
+
+
+SUSPENSION_SYSTEM = Container("SuspensionSystem", ROAD_PLANT_ESTIMATOR, 1e-3, {"QuarterCar.sprung_mass": "sprung_mass"})
+HALF_CAR_SYSTEM = Container(
+    "HalfCarSystem", HALF_CAR_LOOP, 1e-3,
+    {"HalfCar.sprung_mass": "sprung_mass", "SuspensionController.sprung_mass": "sprung_mass",
+     **{f"HalfCarEstimator.{v}": f"HalfCarEstimator.{v}" for v in ("heave_velocity", "pitch_rate", "v_u_front",
+                                                                   "v_u_rear")}},
+    loop_cuts=("HalfCar", "HalfCarEstimator"))
+CONTAINERS: dict[str, Container] = {c.name: c for c in (SUSPENSION_SYSTEM, HALF_CAR_SYSTEM)}
+CONTAINER, STEP, INPUTS = SUSPENSION_SYSTEM.name, SUSPENSION_SYSTEM.step, SUSPENSION_SYSTEM.inputs
+
+
+def wiring(dist: Path, container: Container = SUSPENSION_SYSTEM) -> list[tuple[str, str, str, str, str]]:
     """Rows ``(rule, from_fmu, from_port, to_fmu, to_port)`` of the fmucontainer CSV for the FMUs
     in ``dist``: FMUs in stepping order, inputs, links, outputs and parameters (see the module doc)."""
-    order, connections, _ = SYSTEMS[ROAD_PLANT_ESTIMATOR]
+    order, connections, _ = SYSTEMS[container.system]
     fmu = {c: f"{c}.fmu" for c in order}
     rows = [("FMU", fmu[c], "", "", "") for c in order]
     fed = set()
@@ -62,9 +93,9 @@ def wiring(dist: Path) -> list[tuple[str, str, str, str, str]]:
         for v in md.modelVariables:
             name = f"{c}.{v.name}"
             if v.causality == "input" and name not in fed:
-                if name not in INPUTS:
+                if name not in container.inputs:
                     raise ValueError(f"{name} is fed by no connection and has no container input")
-                rows.append(("INPUT", "", INPUTS[name], fmu[c], v.name))
+                rows.append(("INPUT", "", container.inputs[name], fmu[c], v.name))
             elif v.causality == "output":
                 rows.append(("OUTPUT", fmu[c], v.name, "", name))
             elif v.causality == "parameter":
@@ -72,10 +103,10 @@ def wiring(dist: Path) -> list[tuple[str, str, str, str, str]]:
     return rows
 
 
-def write_wiring(dist: Path) -> Path:
-    """Write ``dist/SuspensionSystem.csv`` (fmucontainer's CSV format) and return it."""
-    path = Path(dist) / f"{CONTAINER}.csv"
-    lines = ["rule;from_fmu;from_port;to_fmu;to_port"] + [";".join(r) for r in wiring(dist)]
+def write_wiring(dist: Path, container: Container = SUSPENSION_SYSTEM) -> Path:
+    """Write ``dist/<name>.csv`` (fmucontainer's CSV format) and return it."""
+    path = Path(dist) / f"{container.name}.csv"
+    lines = ["rule;from_fmu;from_port;to_fmu;to_port"] + [";".join(r) for r in wiring(dist, container)]
     path.write_text("\n".join(lines) + "\n")
     return path
 
@@ -89,16 +120,18 @@ class _Collect(logging.Handler):
         self.records.append(record)
 
 
-def build_container(dist: Path, step: float = STEP) -> Path:
-    """Write the wiring file and build ``dist/SuspensionSystem.fmu`` from the FMUs in ``dist``
-    (internal step ``step`` in s). Raises ``RuntimeError`` with fmucontainer's first error:
-    fmucontainer only logs some of them (a CSV line it cannot use is skipped, not refused)."""
+def build_container(dist: Path, step: float | None = None, container: Container = SUSPENSION_SYSTEM) -> Path:
+    """Write the wiring file and build ``dist/<name>.fmu`` from the FMUs in ``dist`` (internal
+    step ``step`` in s, the container's own by default). Raises ``RuntimeError`` with fmucontainer's
+    first error: fmucontainer only logs some of them (a CSV line it cannot use is skipped, not
+    refused)."""
     from fmu_manipulation_toolbox.assembly import Assembly
 
     dist = Path(dist)
-    out = dist / f"{CONTAINER}.fmu"
+    step = container.step if step is None else step
+    out = dist / f"{container.name}.fmu"
     out.unlink(missing_ok=True)
-    csv = write_wiring(dist)
+    csv = write_wiring(dist, container)
     logger = logging.getLogger("fmu_manipulation_toolbox")
     handler = _Collect()
     logger.addHandler(handler)
@@ -113,25 +146,26 @@ def build_container(dist: Path, step: float = STEP) -> Path:
     finally:
         logger.removeHandler(handler)
         logger.setLevel(level)
-    problems = [r.getMessage() for r in handler.records]
+    cuts = tuple(f"Loop of links through the embedded FMU '{c}.fmu':" for c in container.loop_cuts)
+    problems = [r.getMessage() for r in handler.records if not (cuts and r.getMessage().startswith(cuts))]
     if problems:
         raise RuntimeError(f"fmucontainer: {problems[0]}")
     if not out.is_file():
         raise RuntimeError(f"fmucontainer did not write {out.name}")
-    complete_description(out, dist)
+    complete_description(out, dist, container)
     return out
 
 
-def complete_description(container: Path, dist: Path) -> None:
-    """Rewrite ``modelDescription.xml`` of ``container`` (built from the FMUs in ``dist``) with the
+def complete_description(path: Path, dist: Path, container: Container = SUSPENSION_SYSTEM) -> None:
+    """Rewrite ``modelDescription.xml`` of the container FMU ``path`` (built from the FMUs in ``dist``) with the
     units, UnitDefinitions, min/max and descriptions of the FMU variables its variables stand for,
     the FMUs' author, licence and version, and the outputs' dependencies (none, when no FMU has
     direct feedthrough: a container output then changes only in doStep, like the FMUs' own)."""
-    order = SYSTEMS[ROAD_PLANT_ESTIMATOR][0]
+    order = SYSTEMS[container.system][0]
     mds = {c: read_model_description(str(Path(dist) / f"{c}.fmu"), validate=False) for c in order}
     fmu_vars = {c: {v.name: v for v in md.modelVariables} for c, md in mds.items()}
     feeds = {}  # container input or output -> (instance, FMU variable)
-    for rule, from_fmu, from_port, to_fmu, to_port in wiring(dist):
+    for rule, from_fmu, from_port, to_fmu, to_port in wiring(dist, container):
         if rule == "INPUT":
             feeds.setdefault(from_port, (to_fmu.removesuffix(".fmu"), to_port))
         elif rule == "OUTPUT":
@@ -148,7 +182,7 @@ def complete_description(container: Path, dist: Path) -> None:
             return None
         return fmu_vars[inst].get(var)
 
-    with zipfile.ZipFile(container) as z:
+    with zipfile.ZipFile(path) as z:
         entries = [(info, z.read(info)) for info in z.infolist()]
     root = fromstring(dict((i.filename, b) for i, b in entries)["modelDescription.xml"])
     first = mds[order[0]]
@@ -199,8 +233,8 @@ def complete_description(container: Path, dist: Path) -> None:
             unknown.set("dependenciesKind", "")
     indent(root)
     xml = b'<?xml version="1.0" encoding="UTF-8"?>\n' + tostring(root) + b"\n"
-    tmp = container.with_name(container.name + ".tmp")
+    tmp = path.with_name(path.name + ".tmp")
     with zipfile.ZipFile(tmp, "w") as z:
         for info, data in entries:
             z.writestr(info, xml if info.filename == "modelDescription.xml" else data)
-    tmp.replace(container)
+    tmp.replace(path)

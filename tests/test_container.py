@@ -270,3 +270,35 @@ def test_a_wiring_that_does_not_fit_the_fmus_is_one_clear_error(dist, tmp_path):
     with pytest.raises(RuntimeError, match=r"^fmucontainer: .*QuarterCar\.fmu/acc_sprung' does not exist"):
         build_container(tmp_path)
     assert not (tmp_path / f"{CONTAINER}.fmu").exists()
+
+
+def test_the_half_car_loop_container_is_the_harness(dist):
+    """HalfCarSystem.fmu, paper 002's closed loop (road -> HalfCar <- SuspensionController <-
+    HalfCarEstimator) in one container, driven by FMPy at 1 ms, gives the harness's Gauss-Seidel
+    run of HalfCarLoop.ssp to the last bit: the controller steps after the plant, so in both the
+    plant gets each force a step after it was computed."""
+    from suspension_estimation.harness.container import HALF_CAR_SYSTEM
+    from suspension_estimation.harness.cosim import CoSimulation
+    from suspension_estimation.harness.ssp import HALF_CAR_LOOP, read_ssp
+
+    speed, mass, steps = 20.0, 672.0, 1000
+    record = ["ISORoad.road_height", "HalfCar.heave_velocity", "HalfCar.acc_body_front_true",
+              "HalfCarEstimator.heave_velocity_est", "HalfCarEstimator.sprung_mass_est",
+              "SuspensionController.force_front", "SuspensionController.force_rear"]
+    with CoSimulation(read_ssp(dist / f"{HALF_CAR_LOOP}.ssp", fmu_dir=dist), inputs={"vehicle_speed": speed},
+                      record=record) as sim:
+        result = sim.run(steps * H, H)
+    d = Driven(dist / f"{HALF_CAR_SYSTEM.name}.fmu", {"vehicle_speed": speed, "sprung_mass": mass})
+    try:
+        rows = [[d.get(n) for n in record]]
+        for _ in range(steps):
+            d.step(H, vehicle_speed=speed, sprung_mass=mass)
+            rows.append([d.get(n) for n in record])
+        assert not [m for s, m in d.messages if s >= 2 and m != "Solver configure...."]
+    finally:
+        d.fmu.terminate()  # no fmi2FreeInstance (see _run_in_fmpy)
+        d.log.close()
+    got = np.array(rows, dtype=float)
+    for j, name in enumerate(record):
+        assert np.array_equal(got[:, j], result[name].astype(float)), name
+    assert np.ptp(result["SuspensionController.force_front"]) > 100.0  # the loop is closed
