@@ -2,7 +2,7 @@
 quarter car of that corner (docs/half-car.md, "The quarter-car estimator on a corner").
 
     .venv/bin/python benchmarks/half_car_corners.py [--classes B,C,D] [--speeds 40,80] [--seeds 3]
-        [--duration 60] [--fmu-check] [--apparent-mass]
+        [--duration 60] [--fmu-check] [--apparent-mass] [--observer]
 
 Plant: plant.HalfCar with its defaults (passive, no actuator force) on an ISO 8608 road, the
 rear tyre one wheelbase behind the front one (the road at distance - wheelbase). On each corner
@@ -22,6 +22,9 @@ at rest on the road at distance 0 (-wheelbase for the rear). ``--fmu-check`` run
 instances (harness.cosim; ``python build.py`` first) and prints both. ``--apparent-mass`` prints
 m_eff(f) = F_susp / a_body of each corner (``apparent_mass``) against the corner load, and the
 road error pitch coupling alone costs a quarter-car model of the corner (``coupling_error``).
+``--observer`` also scores the half car's own observer (estimators.half_car_imm.HalfCarObserver,
+HalfCarEstimator.fmu's core, its defaults: IMMAKF5 on the real car's sensors, told the car) on the
+same runs: HP error std % of its road_height_front_est / road_height_rear_est.
 """
 from __future__ import annotations
 
@@ -130,6 +133,25 @@ def cell(p: HalfCarParams, cls: int, speed: float, duration: float, seeds: range
     return {c: np.mean(r, axis=0) for c, r in runs.items()}
 
 
+def observer_cell(p: HalfCarParams, cls: int, speed: float, duration: float, seeds: range) -> dict:
+    """Per corner the mean over ``seeds`` of the HP road error std % of the half car's observer
+    (HalfCarObserver at its defaults) on the runs of ``drive_half_car``."""
+    from suspension_estimation.estimators.half_car_imm import HalfCarObserver
+
+    runs = {c: [] for c in CORNERS}
+    for seed in seeds:
+        half = drive_half_car(p, cls, speed, duration, seed)
+        t = half["t"]
+        (fm, fr), (rm, rr) = half["front"], half["rear"]
+        meas = np.column_stack([fm[:, 0], rm[:, 0], fm[:, 1], rm[:, 1], fm[:, 2], rm[:, 2]])  # its sensor order
+        obs = HalfCarObserver(p)
+        out = [obs.step(z, (0.0, 0.0), speed, H) for z in meas]
+        for c, road in (("front", fr), ("rear", rr)):
+            est = np.array([o[f"road_height_{c}_est"] for o in out])
+            runs[c].append(road_scores(t, est, road, warmup=WARMUP, distance=speed * t)["err_std_hp_pct"])
+    return {c: float(np.mean(r)) for c, r in runs.items()}
+
+
 def corner_response(p: HalfCarParams, f: np.ndarray, speed: float,
                     corner: str) -> tuple[np.ndarray, np.ndarray]:
     """(body displacement above the axle m, suspension force on the body there N, pushing it up),
@@ -228,6 +250,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--duration", type=float, default=60.0, help="s (the first 10 s are not scored)")
     ap.add_argument("--fmu-check", action="store_true", help="also one run (ISO C, 40 km/h, seed 1) through the FMUs")
     ap.add_argument("--apparent-mass", action="store_true", help="also print m_eff(f) of each corner")
+    ap.add_argument("--observer", action="store_true", help="also score the half car's own observer's road")
     a = ap.parse_args(argv)
     if a.duration <= WARMUP or a.seeds < 1:
         print(f"error: --duration must exceed {WARMUP} s and --seeds be >= 1", file=sys.stderr)
@@ -246,6 +269,14 @@ def main(argv: list[str] | None = None) -> int:
                 hh, hq, mh, mq = res[c]
                 print(f"| {letter.strip().upper()} | {kmh:g} | {c} | {hh:.2f} | {hq:.2f} | {hh / hq:.2f} | {mh:+.2f} | "
                       f"{mq:+.2f} | {'PASS' if hh <= RATIO * hq else 'MISS'} |", flush=True)
+    if a.observer:
+        print("\nthe half car's observer (HalfCarObserver, IMMAKF5), HP road error std %\n"
+              "| ISO | km/h | front | rear |\n|---|---|---|---|")
+        for letter in filter(None, a.classes.split(",")):
+            cls = "ABCDEFGH".index(letter.strip().upper()) + 1
+            for kmh in speeds:
+                res = observer_cell(p, cls, kmh / 3.6, a.duration, range(1, a.seeds + 1))
+                print(f"| {letter.strip().upper()} | {kmh:g} | {res['front']:.2f} | {res['rear']:.2f} |", flush=True)
     if a.fmu_check:
         speed = 40 / 3.6
         core = drive_half_car(p, 3, speed, a.duration, 1)
