@@ -51,11 +51,15 @@ class InnovationCheck:
         self.dim_z, self.n_acc = dim_z, n_acc
         self.gain_var, self.delay_var = gain_std ** 2, delay_std ** 2
         self.window, self.limit, self.hold, self.start = window, limit, hold, start
+        # the error sources, one column each: a delay on each channel, a gain on each accelerometer
+        self._e = np.zeros((dim_z, dim_z + n_acc))
+        self._delays = (np.arange(dim_z), np.arange(dim_z))
+        self._gains = (np.arange(n_acc), dim_z + np.arange(n_acc))
+        self._weights = np.array([self.delay_var] * dim_z + [self.gain_var] * n_acc)
         self.reset()
 
     def reset(self) -> None:
         self.state = CONSISTENT
-        self.ratio = np.zeros(self.dim_z)
         self._num = np.zeros(self.dim_z)
         self._den = np.zeros(self.dim_z)
         self._dx = None  # the error responses, one column per error source
@@ -63,32 +67,34 @@ class InnovationCheck:
         self._age = 0.0  # s averaged so far
         self._clear = math.inf  # m travelled since the ratios were last above the limit
 
+    @property
+    def ratio(self) -> np.ndarray:
+        """Each channel's averaged innovation variance over the expected (0 before the first update)."""
+        return np.divide(self._num, self._den, out=np.zeros(self.dim_z), where=self._den > 0)
+
     def update(self, y: np.ndarray, S: np.ndarray, prediction: np.ndarray, F: np.ndarray, K: np.ndarray,
                H: np.ndarray, h: float, ds: float) -> str:
         """One full update: its innovation ``y``, covariance ``S``, the filter's prediction of the
         measurement H x_k|k-1, the filter's F, K, H, the step ``h`` (s) and the distance ``ds``
         (m) travelled in it. Returns the state."""
-        m = self.dim_z
-        e = np.zeros((m, m + self.n_acc))
+        e = self._e
         if self._last is not None:
-            e[np.arange(m), np.arange(m)] = -(prediction - self._last) / h
-        e[np.arange(self.n_acc), m + np.arange(self.n_acc)] = prediction[:self.n_acc]
+            e[self._delays] = (self._last - prediction) / h
+        e[self._gains] = prediction[:self.n_acc]
         self._last = prediction
         if self._dx is None or self._dx.shape[0] != F.shape[0]:
             self._dx = np.zeros((F.shape[0], e.shape[1]))
-        dy = e - H @ (F @ self._dx)
-        self._dx = F @ self._dx + K @ dy
-        dy2 = dy * dy
-        allow = self.delay_var * dy2[:, :m].sum(axis=1) + self.gain_var * dy2[:, m:].sum(axis=1)
+        Fdx = F @ self._dx
+        dy = e - H @ Fdx
+        self._dx = Fdx + K @ dy
         a = min(1.0, h / self.window)
-        expected = np.diag(S) + allow
+        expected = S.diagonal() + (dy * dy) @ self._weights
         self._num += a * (np.minimum(y * y, CLIP * expected) - self._num)
         self._den += a * (expected - self._den)
         self._age += h
         if self._age < max(self.window, self.start):
             return self.state
-        self.ratio = self._num / self._den
-        if np.max(self.ratio) > self.limit:
+        if np.any(self._num > self.limit * self._den):
             self.state, self._clear = INCONSISTENT, 0.0
         else:
             self._clear += ds

@@ -43,7 +43,6 @@ def band_response(n: np.ndarray, cutoff: float = PROFILE_CUTOFF) -> np.ndarray:
     return p ** 3 / ((p + w) * (p * p + w * p + w * w))
 
 
-@lru_cache(maxsize=16)
 def class_band_rms(road_class: int, cutoff: float = PROFILE_CUTOFF) -> float:
     """m: the rms in the band of a road at the upper limit of ISO 8608 class ``road_class``
     (1..8 = A..H: Gd(n0) twice the class's geometric mean), waviness 2:
@@ -53,6 +52,7 @@ def class_band_rms(road_class: int, cutoff: float = PROFILE_CUTOFF) -> float:
     return math.sqrt(math.pi / 3.0 * gd * iso8608.N0 ** 2 * cutoff)
 
 
+@lru_cache(maxsize=16)
 def _eigen(w: float) -> tuple:
     """(eigenvalues, V^-1) of the companion matrix of D(p) (``DistanceHighpass``): its
     eigenvectors are (1, l, l^2), so row i of V^-1 holds the coefficients of the Lagrange

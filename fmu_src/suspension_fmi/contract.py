@@ -149,6 +149,16 @@ def _sensor_params(plant: bool) -> list[Var]:
             for name, (unit, text) in texts.items()]
 
 
+def _assumed_noise(assumed_by: str, prefix: str = "") -> list[Var]:
+    """The std of the white noise an estimator assumes on each of the three sensor kinds (it sets
+    R), defaults the plants' noise; ``assumed_by`` ends each description ("the filters assume")."""
+    texts = {"acc_sprung_noise_std": ("m/s2", NOISE.acc_sprung, "body (sprung-mass) accelerometer"),
+             "acc_unsprung_noise_std": ("m/s2", NOISE.acc_unsprung, "wheel (unsprung-mass) accelerometer"),
+             "defl_noise_std": ("m", NOISE.deflection, "deflection sensor")}
+    return [_real_param(name, unit, start, f"{prefix}{text} noise {assumed_by} (sets R)", NOISE_STD_RANGES[name])
+            for name, (unit, start, text) in texts.items()]
+
+
 def _force_params() -> list[Var]:
     """The nonlinear plant's parameters (spring_model or damper_model = 1): defaults and ranges from
     plant/suspension_forces.py."""
@@ -286,14 +296,7 @@ SUSPENSION_ESTIMATOR: tuple[Var, ...] = (
     Var("road_class", "parameter", "Integer", None, 0,
         "0 = identify the ISO class online and schedule Q/R from it; 1..8 = assume that class (A..H)",
         {0: "identify online", **_CLASSES}),
-    _real_param("acc_sprung_noise_std", "m/s2", NOISE.acc_sprung,
-                "sprung-mass accelerometer noise the filters assume (sets R)",
-                NOISE_STD_RANGES["acc_sprung_noise_std"]),
-    _real_param("acc_unsprung_noise_std", "m/s2", NOISE.acc_unsprung,
-                "unsprung-mass accelerometer noise the filters assume (sets R)",
-                NOISE_STD_RANGES["acc_unsprung_noise_std"]),
-    _real_param("defl_noise_std", "m", NOISE.deflection, "deflection-sensor noise the filters assume (sets R)",
-                NOISE_STD_RANGES["defl_noise_std"]),
+    *_assumed_noise("the filters assume"),
     Var("acc_sampling", "parameter", "Integer", None, 0,
         "0 = accelerations sampled at the end of the step; 1 = averaged over the step (anti-alias filtered "
         "sensor); must match the sensor", {0: "end of step", 1: "average over the step"}),
@@ -490,14 +493,7 @@ HALF_CAR_ESTIMATOR: tuple[Var, ...] = (
         "1 = the paper's eqs. 38-40 (eq. 40's road velocity per sample, fitted at 20 m/s)",
         {0: "ISO intensity (eq. 5)", 1: "paper eqs. 38-40"}),
     *(_half_car_param(v.name, v.unit, v.description) for v in HALF_CAR if v.name in HALF_CAR_RANGES),
-    _real_param("acc_sprung_noise_std", "m/s2", NOISE.acc_sprung,
-                "sensors 0: body accelerometer noise the observer assumes (sets R)",
-                NOISE_STD_RANGES["acc_sprung_noise_std"]),
-    _real_param("acc_unsprung_noise_std", "m/s2", NOISE.acc_unsprung,
-                "sensors 0: wheel accelerometer noise the observer assumes (sets R)",
-                NOISE_STD_RANGES["acc_unsprung_noise_std"]),
-    _real_param("defl_noise_std", "m", NOISE.deflection, "sensors 0: deflection-sensor noise the observer assumes "
-                "(sets R)", NOISE_STD_RANGES["defl_noise_std"]),
+    *_assumed_noise("the observer assumes", "sensors 0: "),
     _real_param("velocity_noise_std", "m/s", 0.01, "sensors 1: noise of each velocity the observer assumes, the pitch "
                 "rate's in rad/s (sets R; the paper's R = 0.01^2)", _VELOCITY_STD),
     *(Var(v.name, "input", "Real", v.unit, 0.0, v.description.replace("measured (with noise)", "sensors 0: measured"))
