@@ -35,11 +35,12 @@ import numpy as np
 from ..plant.half_car import DEFAULT_HALF_CAR, HalfCarParams
 from ..plant.quarter_car import SensorNoise
 from ..plant.step_size import same_step
-from .half_car_kf import (ESTIMATES, IQF, ROAD_NOISE_RULES, HalfCarKF, HalfCarModel, equilibrium, estimate_matrix,
+from .half_car_kf import (ESTIMATES, IQF, N_STATES, ROAD_NOISE_RULES, HalfCarKF, HalfCarModel, equilibrium, estimate_matrix,
                           measurement_noise)
 from .imm import IMM, transition_matrix
 from .kalman import LinearKF, stationary_covariance
 from .road_class import RoadClassifier
+from .sensor_check import CONSISTENT, INCONSISTENT
 
 # code -> (mass sub-models: 0 = one filter, None = imm_models; Q switched by the identified grade)
 CODES: dict[int, tuple[int | None, bool]] = {0: (0, False), 1: (0, True), 2: (None, False), 3: (3, True),
@@ -66,6 +67,10 @@ class ObserverSettings:
     acc_unsprung_noise_std: float = _NOISE.acc_unsprung
     defl_noise_std: float = _NOISE.deflection
     velocity_noise_std: float = 0.01  # m/s (rad/s for the pitch rate): the paper's R = 0.01^2
+    # N^2/s: intensity of the random walk of each axle's force error (half_car_kf's module doc);
+    # 0 = the paper's model, whose velocities feed an LQR a negative spring when the springs are
+    # softer than the model's
+    force_error_q: float = 100.0
 
     def problems(self) -> list[str]:
         """What the contract's ranges cannot say: the mass range must be a range."""
@@ -79,8 +84,9 @@ class MassBank:
     of IMMAKF share everything else, module doc)."""
 
     def __init__(self, params: HalfCarParams, masses: np.ndarray, h: float, sensors: int, R: np.ndarray,
-                 stay: float, x0: np.ndarray, P0: np.ndarray):
+                 stay: float, x0: np.ndarray, P0: np.ndarray, force_error_q: float = 0.0):
         self.params, self.masses, self.sensors = params, np.asarray(masses, float), int(sensors)
+        self.force_error_q = float(force_error_q)
         self._set_models(h)
         M = transition_matrix(len(self.masses), stay)
         self.imm = IMM([m.Phi for m in self.models], [np.zeros_like(m.Phi) for m in self.models],
@@ -88,7 +94,8 @@ class MassBank:
         self.key: tuple[int, float, str] | None = None
 
     def _set_models(self, h: float) -> None:
-        self.models = [HalfCarModel.build(self.params.with_(m_s=float(m)), h, self.sensors) for m in self.masses]
+        self.models = [HalfCarModel.build(self.params.with_(m_s=float(m)), h, self.sensors, self.force_error_q)
+                       for m in self.masses]
         self.Bd = np.array([m.Bd for m in self.models])  # (r, n, 2)
         self.D = np.array([m.D for m in self.models])  # (r, m, 2)
 
@@ -119,6 +126,13 @@ class MassBank:
         return self.imm.P
 
     @property
+    def nis(self) -> float:
+        """The sub-models' normalised innovation squared of the last update, weighted by their
+        probabilities before it (eq. 24's c-bar: the update's own likelihoods would favour the
+        model that fits best)."""
+        return float(self.imm.cbar @ self.imm.quad)
+
+    @property
     def mass(self) -> float:
         return float(self.imm.mu @ self.masses)
 
@@ -127,14 +141,44 @@ class MassBank:
         return float(math.sqrt(max(self.imm.mu @ (self.masses - self.mass) ** 2, 0.0)))
 
 
+class InnovationRatio:
+    """Is the car what the observer's model says? The exponential average over ``window`` s of
+    NIS / m, the normalised innovation squared of each update over its number of measurements:
+    1 on average when the car and the sensors are the model's (0.7-0.9 measured: the IMM's mixing),
+    larger when they are not. Above ``limit`` the state is INCONSISTENT. Not clipped: its square
+    root scales the output stds (covariance matching), and a pothole the linear model does not
+    hold is as much a reason to widen them as a wrong spring."""
+
+    def __init__(self, window: float = 1.0, limit: float = 2.5):
+        self.window, self.limit = float(window), float(limit)
+        self.ratio = 1.0
+        self.age = 0.0  # s averaged
+        self.state = CONSISTENT
+
+    def update(self, nis: float, m: int, h: float) -> str:
+        self.ratio += min(1.0, h / self.window) * (nis / m - self.ratio)
+        self.age += h
+        self.state = INCONSISTENT if self.age >= self.window and self.ratio > self.limit else CONSISTENT
+        return self.state
+
+    @property
+    def std_scale(self) -> float:
+        """The factor on the filter's stds: sqrt(ratio), at least 1."""
+        return math.sqrt(max(self.ratio, 1.0))
+
+
 class HalfCarObserver:
     """One of paper 002's observers (``ObserverSettings.estimator``) on the half car ``params``.
 
     ``step(measured, forces, speed, h)`` takes the measurements of the sensor set at the end of a
     step (``half_car_kf.SENSORS``), the actuator forces held over it (N) and the speed (m/s),
     and returns the estimates: ``ESTIMATES`` with ``_est`` and their ``_std``, the sprung mass
-    and its std, the road class, the most probable sub-model and its probability, the status
-    (0 = updated, 1 = a measurement was not finite: predicted only).
+    and its std, the road class, the most probable sub-model and its probability, the
+    ``InnovationRatio`` and the status (0 = updated, 1 = a measurement was not finite: predicted
+    only, 3 = the innovations are more than ``InnovationRatio.limit`` times what the model
+    expects: the car or a sensor is not the model's). The stds are the filter's times
+    ``InnovationRatio.std_scale``: on a car that is not the model the filter's own covariance
+    understates the errors 2-40 times (docs/half-car-estimator.md).
     """
 
     def __init__(self, params: HalfCarParams = DEFAULT_HALF_CAR, settings: ObserverSettings = ObserverSettings(),
@@ -150,17 +194,21 @@ class HalfCarObserver:
         models, self.adaptive = CODES[s.estimator]
         self.R = measurement_noise(s.sensors, s.acc_sprung_noise_std, s.acc_unsprung_noise_std, s.defl_noise_std,
                                    s.velocity_noise_std)
-        self.T = estimate_matrix(self.params)
-        self.x0 = equilibrium(self.params, forces)
+        # velocity sensors see no steady force error (it moves only positions): no such states
+        self.force_error_q = float(s.force_error_q) if s.sensors == 0 else 0.0
+        n = N_STATES + 2 * (self.force_error_q > 0.0)
+        self.T = estimate_matrix(self.params, n)
+        self.x0 = equilibrium(self.params, forces, n)
         self.road_class = int(s.road_class)  # the class Q is built for
         self.classifier = RoadClassifier()
         self.distance = 0.0  # m travelled
         self.h: float | None = None
         self.n_models = s.imm_models if models is None else models
         self.filter: HalfCarKF | MassBank | None = None  # built at the first step, for its h
+        self.check = InnovationRatio()
 
     def _build(self, h: float, speed: float) -> None:
-        nominal = HalfCarModel.build(self.params, h, self.settings.sensors)
+        nominal = self._model(self.params, h)
         if self.n_models == 0:
             self.filter = HalfCarKF(nominal, self.R, self.x0)
             return
@@ -170,7 +218,10 @@ class HalfCarObserver:
         P0 = ss[1] if ss is not None else np.eye(len(self.x0)) * 1e-4
         masses = np.linspace(self.settings.imm_mass_min, self.settings.imm_mass_max, self.n_models)
         self.filter = MassBank(self.params, masses, h, self.settings.sensors, self.R, self.settings.imm_stay,
-                               self.x0, P0)
+                               self.x0, P0, self.force_error_q)
+
+    def _model(self, params: HalfCarParams, h: float) -> HalfCarModel:
+        return HalfCarModel.build(params, h, self.settings.sensors, self.force_error_q)
 
     def step(self, measured, forces, speed: float, h: float) -> dict[str, float]:
         if self.filter is None:
@@ -179,23 +230,24 @@ class HalfCarObserver:
         elif (h := same_step(h, self.h)) != self.h:
             f = self.filter
             if isinstance(f, HalfCarKF):
-                f.set_model(HalfCarModel.build(self.params, h, self.settings.sensors))
+                f.set_model(self._model(self.params, h))
             else:
                 f.set_step(h)
             self.h = h
         y = np.asarray(measured, float)
         ok = bool(np.all(np.isfinite(y)))
         self.filter.step(y if ok else None, np.asarray(forces, float), self.road_class, speed, self.rule)
+        consistent = not ok or self.check.update(self.filter.nis, len(y), h) == CONSISTENT
         self.distance += abs(speed) * h
         identified = self.classifier.update(self.distance, float(self.filter.x[IQF]), speed)
         if identified and self.adaptive:
             self.road_class = identified
-        return self._outputs(identified or self.settings.road_class, 0 if ok else 1)
+        return self._outputs(identified or self.settings.road_class, 1 if not ok else 0 if consistent else 3)
 
     def _outputs(self, road_class: int, status: int) -> dict[str, float]:
         f = self.filter
         est = self.T @ f.x
-        std = np.sqrt(np.maximum(np.sum((self.T @ f.P) * self.T, axis=1), 0.0))
+        std = self.check.std_scale * np.sqrt(np.maximum(np.sum((self.T @ f.P) * self.T, axis=1), 0.0))
         out = {f"{name}_est": float(v) for name, v in zip(ESTIMATES, est)}
         # the roads' variance is that of the level no sensor sees (module doc of half_car_kf): no std
         out.update({f"{name}_std": float(v) for name, v in zip(ESTIMATES[:8], std[:8])})
@@ -206,7 +258,7 @@ class HalfCarObserver:
         else:
             out.update(sprung_mass_est=float(self.params.m_s), sprung_mass_std=0.0, mass_model=0,
                        mass_model_probability=1.0)
-        out.update(road_class_est=int(road_class), status=status)
+        out.update(road_class_est=int(road_class), innovation_ratio=self.check.ratio, status=status)
         return out
 
 
@@ -214,4 +266,4 @@ SETTINGS = tuple(f.name for f in fields(ObserverSettings))
 
 # every class whose objects an observer holds: the classes a saved HalfCarEstimator FMU state may name
 STATE_CLASSES: tuple[type, ...] = (HalfCarObserver, ObserverSettings, HalfCarParams, HalfCarKF, HalfCarModel,
-                                   LinearKF, MassBank, IMM, RoadClassifier)
+                                   LinearKF, MassBank, IMM, RoadClassifier, InnovationRatio)

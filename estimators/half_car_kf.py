@@ -40,6 +40,18 @@ Process noise, two rules:
               road velocity: at 10 ms it is 0.36 of the ISO rule's, at 1 ms 0.036, and it does not
               follow the speed.
 
+Force errors (``force_error_q`` > 0, the default of ``half_car_imm.ObserverSettings``): two
+more states, x[10:12] = [df_f, df_r] (N), a force on each axle acting as the actuator's does (body
+and wheel apart), random walks driven by white noise of intensity force_error_q (N^2/s).
+They take up what the model's forces get wrong at low frequency: a spring 15 % softer than the
+model's, seen through deflection and acceleration sensors, otherwise shows as a steady velocity
+of the body proportional to the deflection (the model's spring force must be balanced by a
+damper force), and an LQR fed those velocities acts as a negative spring: the closed loop of
+paper 002 diverges in pitch (docs/half-car-estimator.md). The velocities of the paper's sensors
+(sensors 1) are not affected, and they cannot see a steady force error (it moves only positions,
+which they do not measure): with them the observer has no force-error states. force_error_q = 0
+is the paper's 10-state model.
+
 The road states hold the absolute road level only weakly (the 0.01 Hz pole), and no sensor of
 either set sees it: a heave and a pitch of body, wheels and roads together leave every
 measurement unchanged. The estimated roads are the road relative to a level that the filter lets
@@ -59,8 +71,9 @@ from .kalman import LinearKF
 from .model import discretise, held_input_matrix
 
 F0 = 0.01  # Hz, eq. 5's lowest cut-off frequency of the road
-N_STATES = 10
+N_STATES = 10  # the paper's model; force errors add two (module doc)
 IZ, ITH, IZF, IZR, IVZ, IVTH, IVF, IVR, IQF, IQR = range(N_STATES)
+IDF = N_STATES  # first of the two force-error states
 SENSORS = {0: ("acc_body_front", "acc_body_rear", "acc_unsprung_front", "acc_unsprung_rear",
                "susp_deflection_front", "susp_deflection_rear"),
            1: ("heave_velocity", "pitch_rate", "v_u_front", "v_u_rear")}
@@ -72,30 +85,35 @@ ESTIMATES = ("heave_velocity", "pitch_rate", "v_u_front", "v_u_rear", "susp_defl
 MIN_SPEED = 0.1  # m/s: the road noise of a slower car, so that a standing car's filter still listens
 
 
-def continuous_model(p: HalfCarParams) -> tuple[np.ndarray, np.ndarray]:
-    """A (10x10, 1/s) and B (10x2) of x' = A x + B u + road noise, u = [f_f, f_r] (N): eq. 8
-    with eq. 4's pitch row corrected (plant/half_car.py)."""
+def continuous_model(p: HalfCarParams, force_errors: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """A (n x n, 1/s) and B (n x 2) of x' = A x + B u + noise, u = [f_f, f_r] (N): eq. 8 with eq.
+    4's pitch row corrected (plant/half_car.py); n = 10, or 12 with the force errors, which act
+    on the vehicle as the forces do."""
+    n = N_STATES + 2 * bool(force_errors)
     A8, B8 = state_matrices(p)  # x = [q, q'], u = [q_f, q_r, f_f, f_r]
-    A = np.zeros((N_STATES, N_STATES))
+    A = np.zeros((n, n))
     A[:8, :8] = A8
-    A[:8, IQF:] = B8[:, :2]
+    A[:8, IQF:IQR + 1] = B8[:, :2]
     A[IQF, IQF] = A[IQR, IQR] = -2 * math.pi * F0
-    B = np.zeros((N_STATES, 2))
+    B = np.zeros((n, 2))
     B[:8] = B8[:, 2:]
+    if force_errors:
+        A[:8, IDF:] = B8[:, 2:]
     return A, B
 
 
-def output_matrices(p: HalfCarParams, sensors: int) -> tuple[np.ndarray, np.ndarray]:
-    """C (m x 10) and D (m x 2) of the measurements of sensor set ``sensors`` (module doc)."""
+def output_matrices(p: HalfCarParams, sensors: int, force_errors: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """C (m x n) and D (m x 2) of the measurements of sensor set ``sensors`` (module doc)."""
+    n = N_STATES + 2 * bool(force_errors)
     if sensors == 1:
-        C = np.zeros((4, N_STATES))
+        C = np.zeros((4, n))
         C[:, IVZ:IVZ + 4] = np.eye(4)
         return C, np.zeros((4, 2))
     if sensors != 0:
         raise ValueError(f"sensors = {sensors!r} is not one of {sorted(SENSORS)}")
-    A, B = continuous_model(p)
+    A, B = continuous_model(p, force_errors)
     body = np.array([[1.0, p.l_f, 0.0, 0.0], [1.0, -p.l_r, 0.0, 0.0]])  # eq. 3 at the axles
-    C = np.zeros((6, N_STATES))
+    C = np.zeros((6, n))
     D = np.zeros((6, 2))
     C[:2] = body @ A[IVZ:IVZ + 4]
     D[:2] = body @ B[IVZ:IVZ + 4]
@@ -104,9 +122,9 @@ def output_matrices(p: HalfCarParams, sensors: int) -> tuple[np.ndarray, np.ndar
     return C, D
 
 
-def estimate_matrix(p: HalfCarParams) -> np.ndarray:
-    """T (10x10): T x are the ``ESTIMATES`` (m/s, rad/s, m) of the state x."""
-    T = np.zeros((len(ESTIMATES), N_STATES))
+def estimate_matrix(p: HalfCarParams, n: int = N_STATES) -> np.ndarray:
+    """T (10 x n): T x are the ``ESTIMATES`` (m/s, rad/s, m) of the state x of n states."""
+    T = np.zeros((len(ESTIMATES), n))
     T[:4, IVZ:IVZ + 4] = np.eye(4)
     T[4, [IZ, ITH, IZF]] = [1.0, p.l_f, -1.0]
     T[5, [IZ, ITH, IZR]] = [1.0, -p.l_r, -1.0]
@@ -116,9 +134,10 @@ def estimate_matrix(p: HalfCarParams) -> np.ndarray:
     return T
 
 
-def equilibrium(p: HalfCarParams, forces) -> np.ndarray:
-    """The state at rest on a level road (q = 0) with the actuator forces (N) applied."""
-    x = np.zeros(N_STATES)
+def equilibrium(p: HalfCarParams, forces, n: int = N_STATES) -> np.ndarray:
+    """The state (n states) at rest on a level road (q = 0) with the actuator forces (N) applied
+    and no force error."""
+    x = np.zeros(n)
     x[:4] = np.linalg.solve(stiffness_matrix(p), input_matrix(p)[:, 2:] @ np.asarray(forces, float))
     return x
 
@@ -137,10 +156,12 @@ def paper_road_velocity(d: float) -> float:
 @dataclass
 class HalfCarModel:
     """The discretised observer model of one half car (its ``params.m_s`` the model's sprung
-    mass) at a step h (s): x_k = Phi x_{k-1} + Bd u + w_k, y_k = C x_k + D u + v_k.
+    mass) at a step h (s): x_k = Phi x_{k-1} + Bd u + w_k, y_k = C x_k + D u + v_k; 10 states,
+    12 with ``force_error_q`` > 0 (N^2/s, module doc).
 
-    ``Q_iso`` is Q_d at unit road intensity (Qc = 1 m^2/s on each road): Q_d scales with the
-    intensity; ``Q_paper`` is Gamma Gamma' (s^2), eq. 38's Q at Q_RV = 1 m/s."""
+    ``Q_iso`` is the roads' part of Q_d at unit road intensity (Qc = 1 m^2/s on each road): it
+    scales with the intensity; ``Q_paper`` is Gamma Gamma' (s^2), eq. 38's Q at Q_RV = 1 m/s;
+    ``Q_force`` the force errors' part of Q_d."""
 
     params: HalfCarParams
     h: float
@@ -149,35 +170,48 @@ class HalfCarModel:
     Bd: np.ndarray
     Q_iso: np.ndarray
     Q_paper: np.ndarray
+    Q_force: np.ndarray
     C: np.ndarray
     D: np.ndarray
 
     @classmethod
-    def build(cls, params: HalfCarParams, h: float, sensors: int) -> "HalfCarModel":
-        A, B = continuous_model(params)
+    def build(cls, params: HalfCarParams, h: float, sensors: int, force_error_q: float = 0.0) -> "HalfCarModel":
+        force_errors = force_error_q > 0.0
+        A, B = continuous_model(params, force_errors)
+        n = len(A)
         A0 = A.copy()
-        b = np.zeros((N_STATES, 2))
-        b[:8] = A[:8, IQF:]
-        A0[:8, IQF:] = 0.0
-        E = np.zeros((N_STATES, 2))
+        b = np.zeros((n, 2))
+        b[:8] = A[:8, IQF:IQR + 1]
+        A0[:8, IQF:IQR + 1] = 0.0
+        E = np.zeros((n, 2))
         E[IQF, 0] = E[IQR, 1] = 1.0
         Phi0, Q0 = discretise(A0, E @ E.T, h)
-        M = np.linalg.inv(np.eye(N_STATES) - held_input_matrix(A0, b, h) @ E.T)
+        M = np.linalg.inv(np.eye(n) - held_input_matrix(A0, b, h) @ E.T)
         Gamma = M @ held_input_matrix(A0, E, h)
-        C, D = output_matrices(params, sensors)
+        C, D = output_matrices(params, sensors, force_errors)
         Q_iso = M @ Q0 @ M.T
         Q_paper = Gamma @ Gamma.T
+        Q_force = np.zeros((n, n))
+        if force_errors:
+            Ef = np.zeros((n, n))
+            Ef[IDF, IDF] = Ef[IDF + 1, IDF + 1] = float(force_error_q)
+            Q_force = M @ discretise(A0, Ef, h)[1] @ M.T
         return cls(params, float(h), int(sensors), np.ascontiguousarray(M @ Phi0),
                    np.ascontiguousarray(M @ held_input_matrix(A0, B, h)), 0.5 * (Q_iso + Q_iso.T),
-                   0.5 * (Q_paper + Q_paper.T), C, D)
+                   0.5 * (Q_paper + Q_paper.T), 0.5 * (Q_force + Q_force.T), C, D)
+
+    @property
+    def n(self) -> int:
+        return len(self.Phi)
 
     def process_noise(self, road_class: int, speed: float, rule: str = "iso") -> np.ndarray:
-        """Q_d (state units squared) on a road of ISO class ``road_class`` (1..8) at ``speed`` (m/s)."""
+        """Q_d (state units squared) on a road of ISO class ``road_class`` (1..8) at ``speed`` (m/s),
+        the force errors' part included."""
         gd = iso8608.class_psd_n0(road_class)
         if rule == "iso":
-            return road_intensity(gd, speed) * self.Q_iso
+            return road_intensity(gd, speed) * self.Q_iso + self.Q_force
         if rule == "paper":
-            return paper_road_velocity(iso8608.grade_index(gd)) ** 2 * self.Q_paper
+            return paper_road_velocity(iso8608.grade_index(gd)) ** 2 * self.Q_paper + self.Q_force
         raise ValueError(f"road noise rule {rule!r} is not one of {ROAD_NOISE_RULES}")
 
 
@@ -202,7 +236,7 @@ class HalfCarKF:
 
     def __init__(self, model: HalfCarModel, R: np.ndarray, x0: np.ndarray, speed_tol: float = 0.02):
         self.model = model
-        self.kf = LinearKF(N_STATES, model.C.shape[0], freeze_tol=1e-6)
+        self.kf = LinearKF(model.n, model.C.shape[0], freeze_tol=1e-6)
         self.kf.x = np.array(x0, float)
         self.R = R
         self.speed_tol = float(speed_tol)
@@ -243,3 +277,8 @@ class HalfCarKF:
     @property
     def P(self) -> np.ndarray:
         return self.kf.P
+
+    @property
+    def nis(self) -> float:
+        """Normalised innovation squared of the last update, y' S^-1 y."""
+        return float(self.kf.nis)

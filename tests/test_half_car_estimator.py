@@ -29,14 +29,18 @@ RELATIVE = ESTIMATES[:8]  # velocities, deflections, tyre deflections
 
 
 def drive(settings: ObserverSettings, road_class: int = 3, h: float = 0.01, duration: float = 20.0, seed: int = 1,
-          m_s: float = P.m_s, speed: float = SPEED, level: float = 0.0, slope: float = 0.0) -> dict:
+          m_s: float = P.m_s, speed: float = SPEED, level: float = 0.0, slope: float = 0.0,
+          plant_error: dict | None = None) -> dict:
     """The observer on the plant core over an ISO road (the plant's measurements with its noise;
     for sensors 1 its true velocities plus 0.01 white noise). The road may stand at ``level`` (m)
     and climb at ``slope``; the true velocities are then taken relative to the climb (slope *
-    speed), which no sensor sees. Returns the estimates and the truth (rows per step), the mass
-    and class estimates and the last outputs."""
+    speed), which no sensor sees. ``plant_error``: factors on the plant's parameters (the observer
+    is told P). Returns the estimates, their stds and the truth (rows per step), the mass and
+    class estimates, the innovation ratio and status per step and the last outputs."""
     road = SyntheticRoad(iso8608.class_psd_n0(road_class), seed=seed)
-    car = HalfCar(P.with_(m_s=m_s), SensorNoise(), noise_seed=seed)
+    plant = P.with_(m_s=m_s)
+    plant = plant.with_(**{k: f * getattr(plant, k) for k, f in (plant_error or {}).items()})
+    car = HalfCar(plant, SensorNoise(), noise_seed=seed)
     obs = HalfCarObserver(P, settings)
     rng = np.random.default_rng(seed + 1000)
 
@@ -45,7 +49,7 @@ def drive(settings: ObserverSettings, road_class: int = 3, h: float = 0.01, dura
 
     q0 = heights(0.0)
     car.settle(*q0)
-    est, true, mass, classes = [], [], [], []
+    est, std, true, mass, classes, ratio, status = [], [], [], [], [], [], []
     for k in range(int(round(duration / h))):
         qf, qr = heights(speed * (k + 1) * h)
         car.step(qf, qr, h)
@@ -53,12 +57,22 @@ def drive(settings: ObserverSettings, road_class: int = 3, h: float = 0.01, dura
         y = car.measured if settings.sensors == 0 else x[4:8] + 0.01 * rng.standard_normal(4)
         out = obs.step(y, (0.0, 0.0), speed, h)
         est.append([out[f"{name}_est"] for name in ESTIMATES])
+        std.append([out[f"{name}_std"] for name in RELATIVE])
+        ratio.append(out["innovation_ratio"])
+        status.append(out["status"])
         climb = slope * speed
         true.append([x[4] - climb, x[5], x[6] - climb, x[7] - climb, *car.deflection_true, x[2] - qf, x[3] - qr, qf - q0[0], qr - q0[1]])
         mass.append(out["sprung_mass_est"])
         classes.append(out["road_class_est"])
-    return {"est": np.array(est), "true": np.array(true), "mass": np.array(mass), "class": np.array(classes),
-            "last": out}
+    return {"est": np.array(est), "std": np.array(std), "true": np.array(true), "mass": np.array(mass),
+            "class": np.array(classes), "ratio": np.array(ratio), "status": np.array(status), "last": out}
+
+
+def coverage(run: dict, skip: float = 0.25) -> np.ndarray:
+    """Share of the samples (after the first ``skip`` of the run) where each relative estimate is
+    within 2 of its stds of the truth."""
+    k = int(len(run["est"]) * skip)
+    return np.mean(np.abs(run["est"][k:, :8] - run["true"][k:, :8]) <= 2 * run["std"][k:], axis=0)
 
 
 def relative_errors(run: dict, skip: float = 0.25) -> np.ndarray:
@@ -191,6 +205,43 @@ def test_finite_and_accurate_on_a_climbing_road_far_above_sea_level():
     assert np.all(last < 1.5 * first + 0.005), (first, last)
 
 
+# measured (ISO D at 30 m/s and B at 10 m/s, seed 1, 30 s, IMMAKF5; the filter's own std, then
+# widened by the innovation ratio): exact car 0.95-0.97 (ratio 0.7-0.9); springs -15 % 0.20-0.78
+# -> 0.70-1.00 (ratio 18); dampers -30 % 0.04-0.15 -> 0.73-1.00 (ratio 530); sprung mass +25 %
+# 0.45-0.95 -> 0.80-1.00 (ratio 5); tyres -10 % on ISO B: 0.54-0.64 on the tyre deflections, ratio
+# 0.9 (no sensor sees the tyre: the last test here)
+@pytest.mark.parametrize("plant_error", [{"k_f": 0.85, "k_r": 0.85}, {"c_f": 0.7, "c_r": 0.7}])
+def test_on_a_car_that_is_not_the_model_the_status_says_so_and_the_stds_widen(plant_error):
+    """The filter's own covariance understates its errors many times when the springs or the
+    dampers are not the model's; the innovations show it (status 3 within 2 s), and the stds,
+    widened by the square root of the innovation ratio, cover most of the errors."""
+    run = drive(ObserverSettings(), road_class=4, speed=30.0, duration=20.0, plant_error=plant_error)
+    k = int(2.0 / 0.01)
+    assert np.all(run["status"][k:] == 3) and np.min(run["ratio"][k:]) > 2.5
+    cov = coverage(run)
+    own = np.mean(np.abs(run["est"][k:, :8] - run["true"][k:, :8])
+                  <= 2 * run["std"][k:] / np.sqrt(run["ratio"][k:, None]), axis=0)
+    assert np.min(own) < 0.5 and np.all(cov >= 0.6) and np.all(cov[:2] >= 0.9), (own, cov)
+
+
+def test_on_the_exact_car_the_stds_are_the_filters_own_and_cover():
+    run = drive(ObserverSettings(), road_class=4, speed=30.0, duration=20.0)
+    assert np.all(run["status"] == 0) and np.max(run["ratio"][200:]) < 1.5 and np.mean(run["ratio"]) < 1.1
+    assert np.all((coverage(run) > 0.92) & (coverage(run) < 0.99))
+
+
+def test_a_tyre_softer_than_told_is_seen_by_no_sensor():
+    """The tyre deflections are inferred from the wheel's force balance through the model's k_t:
+    with the tyres 10 % softer the innovations stay as the model expects on ISO B (ratio ~1,
+    status 0) while the tyre deflections are off by about the stiffness error (11 % of their RMS
+    measured; the velocities by 4-6 %, 1-2 % on the exact car).
+    Not a defect this observer can mend: the tyre's stiffness must be known (docs/half-car-estimator.md)."""
+    run = drive(ObserverSettings(), road_class=2, speed=10.0, duration=20.0, plant_error={"k_tf": 0.9, "k_tr": 0.9})
+    assert np.max(run["ratio"][200:]) < 1.5 and np.mean(run["ratio"]) < 1.1 and np.all(run["status"] == 0)
+    err = relative_errors(run)
+    assert np.all((err[6:8] > 0.07) & (err[6:8] < 0.15)) and np.all(err[:6] < 0.08), err
+
+
 def test_a_measurement_that_is_not_finite_is_left_out():
     obs = HalfCarObserver(P, ObserverSettings())
     out = obs.step([0.0, math.nan, 0.0, 0.0, 0.0, 0.0], (0.0, 0.0), SPEED, 0.01)
@@ -289,15 +340,15 @@ def accuracy_table(seeds=(1, 2, 3)) -> None:
     and 400 kg; the mass (mean of the last 10 s) and the class at the end; means over ``seeds``."""
     print("| estimator | sensors | m_s true (kg) | " + " | ".join(RELATIVE) + " | mass (kg) | class |")
     print("|---" * (len(RELATIVE) + 5) + "|")
-    for sensors in (0, 1):
+    for sensors, q, label in ((0, ObserverSettings().force_error_q, "0"), (0, 0.0, "0, paper's model"), (1, 0.0, "1")):
         for m_s in (350.0, 400.0):
             for code, (name, _) in HALF_CAR_ESTIMATORS.items():
-                runs = [drive(ObserverSettings(estimator=code, sensors=sensors, **PAPER_BANK), m_s=m_s, seed=s,
-                              duration=30.0) for s in seeds]
+                runs = [drive(ObserverSettings(estimator=code, sensors=sensors, force_error_q=q, **PAPER_BANK), m_s=m_s,
+                              seed=s, duration=30.0) for s in seeds]
                 err = np.mean([relative_errors(r) for r in runs], axis=0) * 100
                 mass = np.mean([np.mean(r["mass"][-1000:]) for r in runs])
                 cls = "".join(iso8608.class_name(r["class"][-1]) for r in runs)
-                print(f"| {name} | {sensors} | {m_s:g} | " + " | ".join(f"{e:.1f}" for e in err)
+                print(f"| {name} | {label} | {m_s:g} | " + " | ".join(f"{e:.1f}" for e in err)
                       + f" | {mass:.0f} | {cls} |")
 
 
@@ -344,8 +395,41 @@ def fig6_table(seed: int = 1, h: float = 0.01) -> None:
                   + ", ".join(f"{m:.0f}" for m, _ in ends_out) + " | " + "".join(c for _, c in ends_out) + " |")
 
 
+# a car that is not the observer's model: factors on the plant's parameters
+MISMATCH = {"exact": {}, "springs -15 %": {"k_f": 0.85, "k_r": 0.85}, "springs +15 %": {"k_f": 1.15, "k_r": 1.15},
+            "dampers -30 %": {"c_f": 0.7, "c_r": 0.7}, "dampers +30 %": {"c_f": 1.3, "c_r": 1.3},
+            "sprung mass +25 %": {"m_s": 1.25}, "tyres -10 %": {"k_tf": 0.9, "k_tr": 0.9},
+            "pitch inertia -20 %": {"pitch_inertia": 0.8}}
+
+
+def mismatch_table(seeds=(1, 2)) -> None:
+    """IMMAKF5 at its defaults told HalfCar's default car, the plant off by ``MISMATCH``: the share
+    of samples within 2 of the filter's own stds (min-max over the 8 relative states) and within 2
+    of the output stds (widened by the innovation ratio, per state), the ratio's mean and the share
+    of samples at status 3; ISO D at 30 m/s and ISO B at 10 m/s, 10 ms, 30 s scored after 7.5 s,
+    means over ``seeds``."""
+    print("| plant | ISO, m/s | own std: coverage | output std: coverage " + " / ".join(RELATIVE)
+          + " | innovation ratio | status 3 % |")
+    print("|---|---|---|---|---|---|")
+    for case, error in MISMATCH.items():
+        for road_class, speed in ((4, 30.0), (2, 10.0)):
+            runs = [drive(ObserverSettings(), road_class=road_class, speed=speed, duration=30.0, seed=s,
+                          plant_error=error) for s in seeds]
+            k = len(runs[0]["est"]) // 4
+            own = np.mean([np.mean(np.abs(r["est"][k:, :8] - r["true"][k:, :8])
+                                   <= 2 * r["std"][k:] / np.sqrt(np.maximum(r["ratio"][k:, None], 1.0)), axis=0)
+                           for r in runs], axis=0)
+            cov = np.mean([coverage(r) for r in runs], axis=0)
+            ratio = np.mean([np.mean(r["ratio"][k:]) for r in runs])
+            flagged = 100 * np.mean([np.mean(r["status"][k:] == 3) for r in runs])
+            print(f"| {case} | {iso8608.class_name(road_class)}, {speed:g} | {own.min():.2f}-{own.max():.2f} | "
+                  + " / ".join(f"{c:.2f}" for c in cov) + f" | {ratio:.2f} | {flagged:.0f} |")
+
+
 if __name__ == "__main__":
     if sys.argv[1:2] == ["fig6"]:
         fig6_table(*(int(a) for a in sys.argv[2:3]))
+    elif sys.argv[1:2] == ["mismatch"]:
+        mismatch_table(tuple(int(a) for a in sys.argv[2:]) or (1, 2))
     else:
         accuracy_table(tuple(int(a) for a in sys.argv[1:]) or (1, 2, 3))

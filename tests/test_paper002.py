@@ -18,9 +18,11 @@ DURATION = 8.0  # s: four 2 s segments
 
 @pytest.fixture(scope="module")
 def loops(dist):
-    """passive, LQR on true states, on IMMAKF5, and on true states with a Jacobi master, seed 1."""
+    """passive, LQR on true states, on the default estimator, and on true states with a Jacobi master;
+    LQR on true states and on the default estimator with the plant's springs 15 % softer; seed 1."""
     out = {}
-    for loop in ("passive", "LQR true", "LQR IMMAKF5", "LQR true, Jacobi"):
+    for loop in ("passive", "LQR true", f"LQR {P.DEFAULT}", "LQR true, Jacobi", "LQR true, springs -15 %",
+                 f"LQR {P.DEFAULT}, springs -15 %"):
         spec = RunSpec(f"{P.KIND} {loop}", 0, 1, DURATION, 0.0, P.LOOPS[loop][2], str(dist))
         out[loop] = P.run_loop(spec, loop)
     return out
@@ -35,10 +37,19 @@ def test_lqr_on_true_states_lowers_the_body_acceleration_of_the_passive_car(loop
 
 
 def test_lqr_on_the_default_estimator_is_within_10_percent_of_lqr_on_true_states(loops):
-    true, est = (loops[k]["comfort"]["acc_cg_rms"] for k in ("LQR true", "LQR IMMAKF5"))
+    true, est = (loops[k]["comfort"]["acc_cg_rms"] for k in ("LQR true", f"LQR {P.DEFAULT}"))
     assert est <= (1 + P.TARGET_TRUE) * true, (est, true)
     # and it found each segment's sprung mass (the scenario's, scaled to the 672 kg car)
-    assert np.allclose(loops["LQR IMMAKF5"]["mass_end"], P.MASSES, rtol=0.02)
+    assert np.allclose(loops[f"LQR {P.DEFAULT}"]["mass_end"], P.MASSES, rtol=0.02)
+
+
+def test_the_default_estimator_holds_the_loop_with_springs_softer_than_told(loops):
+    """The plant's springs 15 % softer than the estimator and the controller are told (the paper's
+    observer diverges there: tests/test_half_car_loop_robustness.py): within 10 % of LQR on the
+    true states of that car, and the masses still found (the springs do not pass for a mass)."""
+    true, est = (loops[k]["comfort"]["acc_cg_rms"] for k in ("LQR true, springs -15 %", f"LQR {P.DEFAULT}, springs -15 %"))
+    assert est <= (1 + P.TARGET_TRUE) * true, (est, true)
+    assert np.allclose(loops[f"LQR {P.DEFAULT}, springs -15 %"]["mass_end"], P.MASSES, rtol=0.05)
 
 
 def test_the_force_a_step_late_costs_body_acceleration(loops):

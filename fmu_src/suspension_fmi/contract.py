@@ -38,6 +38,7 @@ UNITS: dict[str, dict[str, float]] = {
     "rad": {"rad": 1},
     "rad/s": {"rad": 1, "s": -1},
     "kg.m2": {"kg": 1, "m": 2},
+    "N2/s": {"kg": 2, "m": 2, "s": -5},
 }
 
 
@@ -496,6 +497,10 @@ HALF_CAR_ESTIMATOR: tuple[Var, ...] = (
     *_assumed_noise("the observer assumes", "sensors 0: "),
     _real_param("velocity_noise_std", "m/s", 0.01, "sensors 1: noise of each velocity the observer assumes, the pitch "
                 "rate's in rad/s (sets R; the paper's R = 0.01^2)", _VELOCITY_STD),
+    _real_param("force_error_q", "N2/s", 100.0,
+                "sensors 0: intensity of the random walk of each axle's force error, a state that takes up what the model's "
+                "spring and damper forces get wrong; 0 = the paper's model (an LQR on its estimates diverges in "
+                "pitch with springs 15 % softer than told)", (0.0, 1e8)),
     *(Var(v.name, "input", "Real", v.unit, 0.0, v.description.replace("measured (with noise)", "sensors 0: measured"))
       for v in HALF_CAR if v.name in ("acc_body_front", "acc_body_rear", "acc_unsprung_front", "acc_unsprung_rear",
                                       "susp_deflection_front", "susp_deflection_rear")),
@@ -533,8 +538,12 @@ HALF_CAR_ESTIMATOR: tuple[Var, ...] = (
     Var("mass_model", "output", "Integer", None, None,
         "the most probable mass sub-model, 1 = the lightest (0 for estimator 0 and 1)"),
     Var("mass_model_probability", "output", "Real", "1", None, "its probability (1 for estimator 0 and 1)"),
+    Var("innovation_ratio", "output", "Real", "1", None,
+        "average over 1 s of the normalised innovation squared per measurement: about 1 when the car and the "
+        "sensors are the model's; the *_std outputs are the filter's times its square root when above 1"),
     Var("status", "output", "Integer", None, None,
-        "0 = updated, 1 = a measurement of the sensor set was not finite: the step predicted only"),
+        "0 = updated, 1 = a measurement of the sensor set was not finite: the step predicted only, 3 = "
+        "innovation_ratio above 2.5: the car or a sensor is not what the model assumes (the *_std are widened)"),
 )
 
 # SuspensionController: the half car's active suspension (controllers/; docs/controller.md). The
