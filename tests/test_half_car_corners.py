@@ -70,3 +70,20 @@ def test_at_dynamic_index_1_each_corner_is_a_quarter_car_in_time():
         err = max(np.max(np.abs(f_front - bench.corner_load(p, "front") * a_front)) / np.max(np.abs(f_front)),
                   np.max(np.abs(f_rear - bench.corner_load(p, "rear") * a_rear)) / np.max(np.abs(f_rear)))
         assert (err > 0.05) if coupled else (err < 1e-9), (coupled, err)
+
+
+@pytest.mark.parametrize("corner", bench.CORNERS)
+def test_pitch_coupling_alone_puts_the_1_3x_target_out_of_reach_of_any_fixed_mass(iso_c_40, corner):
+    """The issue's target (HP within 1.3x the quarter car's figure) leaves the coupling at most
+    sqrt(1.3^2 - 1) = 0.83 of that figure, added in quadrature. On this car (dynamic index 0.82) the
+    coupling's error at the best fixed mass exceeds it at both speeds: no quarter-car model of the
+    corner can meet the target, however well tuned; at dynamic index 0.95 it stays below it."""
+    hp_quarter = iso_c_40[corner][1]
+    allowed = np.sqrt(1.3 ** 2 - 1) * hp_quarter
+    P = DEFAULT_HALF_CAR
+    for speed in SPEEDS:
+        best = bench.coupling_error(P, speed, corner)[1]
+        assert bench.coupling_error(P, speed, corner, best)[0] > allowed, (speed, allowed)
+        p = P.with_(pitch_inertia=0.95 * P.m_s * P.l_f * P.l_r)
+        best = bench.coupling_error(p, speed, corner)[1]
+        assert bench.coupling_error(p, speed, corner, best)[0] < allowed, (speed, allowed)
