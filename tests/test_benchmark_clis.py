@@ -60,3 +60,24 @@ def test_robust_cores_spread(capsys):
     a, b = (float(v) for v in row[11].split(" to "))
     assert lo <= cov <= hi and lo < hi  # the KF told the wrong damper: the seeds differ
     assert a <= cov <= b and (a + b) / 2 == pytest.approx(cov, abs=1e-3)
+
+
+def test_half_car_loop_grid_subset_and_plant_error(capsys):
+    """One condition of the grid on a plant with softer springs runs and exits 0; a plant error
+    that names no parameter, or a scale that is not positive, is refused in one line."""
+    mod = _load("half_car_loop_grid.py")
+    assert mod.main(["--speeds", "10", "--classes", "A", "--masses", "672", "--duration", "1",
+                     "--plant-error", "k_f=0.85,k_r=0.85"]) == 0
+    assert "| 10 | A | 672 |" in capsys.readouterr().out
+    for bad in ("k_x=0.8", "k_f=-1", "m_s=0.8"):
+        assert mod.main(["--plant-error", bad]) == 1
+        assert "--plant-error" in capsys.readouterr().err
+    assert mod.main(["--classes", "E"]) == 1
+    assert "--classes" in capsys.readouterr().err
+
+
+def test_half_car_corners_refuses_a_noise_factor_out_of_range(capsys):
+    mod = _load("half_car_corners.py")
+    for bad in (["--told-noise", "0"], ["--noise", "-1"]):
+        assert mod.main(bad) == 1
+        assert "--told-noise" in capsys.readouterr().err
