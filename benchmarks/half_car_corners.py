@@ -2,7 +2,7 @@
 quarter car of that corner (docs/half-car.md, "The quarter-car estimator on a corner").
 
     .venv/bin/python benchmarks/half_car_corners.py [--classes B,C,D] [--speeds 40,80] [--seeds 3]
-        [--duration 60] [--fmu-check] [--apparent-mass] [--observer]
+        [--duration 60] [--noise 1] [--told-noise 1] [--fmu-check] [--apparent-mass] [--observer]
 
 Plant: plant.HalfCar with its defaults (passive, no actuator force) on an ISO 8608 road, the
 rear tyre one wheelbase behind the front one (the road at distance - wheelbase). On each corner
@@ -25,6 +25,9 @@ road error pitch coupling alone costs a quarter-car model of the corner (``coupl
 ``--observer`` also scores the half car's own observer (estimators.half_car_imm.HalfCarObserver,
 HalfCarEstimator.fmu's core, its defaults: IMMAKF5 on the real car's sensors, told the car) on the
 same runs: HP error std % of its road_height_front_est / road_height_rear_est.
+``--noise`` scales the plants' sensor noise (both plants, and what the estimators are told);
+``--told-noise`` scales what the estimators are told on top (< 1: they trust the sensors more
+than their noise warrants), and the table adds the ±2 road_height_std coverage.
 """
 from __future__ import annotations
 
@@ -65,13 +68,14 @@ def corner_vehicle(p: HalfCarParams, corner: str) -> Vehicle:
                    k_t=p.k_tf if f else p.k_tr, c_s=p.c_f if f else p.c_r)
 
 
-def drive_half_car(p: HalfCarParams, cls: int, speed: float, duration: float, seed: int) -> dict:
+def drive_half_car(p: HalfCarParams, cls: int, speed: float, duration: float, seed: int,
+                   noise: SensorNoise = SensorNoise()) -> dict:
     """Run the half car on ISO class ``cls`` (1 = A) road ``seed`` at ``speed`` m/s for
     ``duration`` s. Returns t (s, end of each step), per corner its measurements (n x 3:
     body acceleration m/s2, wheel acceleration m/s2, deflection m) and the road under its tyre (m)."""
     road = SyntheticRoad(iso8608.class_psd_n0(cls), seed=seed)
     L = p.wheelbase
-    car = HalfCar(p, SensorNoise(), noise_seed=1000 + seed)
+    car = HalfCar(p, noise, noise_seed=1000 + seed)
     car.settle(road.height(0.0), road.height(-L))
     n = int(round(duration / H))
     meas, zr = np.empty((n, 6)), np.empty((n, 2))
@@ -85,11 +89,11 @@ def drive_half_car(p: HalfCarParams, cls: int, speed: float, duration: float, se
 
 
 def drive_quarter_car(v: Vehicle, cls: int, speed: float, duration: float, seed: int,
-                      behind: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+                      behind: float = 0.0, noise: SensorNoise = SensorNoise()) -> tuple[np.ndarray, np.ndarray]:
     """The quarter car ``v`` on the same road, ``behind`` m behind the front tyre: its measurements
     (n x 3, as drive_half_car's) and the road under it (m)."""
     road = SyntheticRoad(iso8608.class_psd_n0(cls), seed=seed)
-    car = QuarterCar(v, SensorNoise(), noise_seed=1000 + seed)
+    car = QuarterCar(v, noise, noise_seed=1000 + seed)
     car.settle(road.height(-behind))
     n = int(round(duration / H))
     meas, zr = np.empty((n, 3)), np.empty(n)
@@ -100,36 +104,54 @@ def drive_quarter_car(v: Vehicle, cls: int, speed: float, duration: float, seed:
     return meas, zr
 
 
-def estimate(meas: np.ndarray, v: Vehicle, speed: float) -> tuple[np.ndarray, np.ndarray]:
+def estimate(meas: np.ndarray, v: Vehicle, speed: float, told: SensorNoise = SensorNoise(),
+             std: bool = False) -> tuple[np.ndarray, ...]:
     """Road estimate (m) and sprung-mass estimate (kg) per step of the default SuspensionEstimator
-    told the quarter car ``v``, fed ``meas`` (n x 3) at ``speed`` m/s."""
-    est = SuspensionEstimator(m_s_nominal=v.m_s, m_u=v.m_u, k_s=v.k_s, k_t=v.k_t, c_s=v.c_s)
-    out = np.array([(o["road_height_est"], o["sprung_mass_est"])
+    told the quarter car ``v`` and the sensor noise ``told``, fed ``meas`` (n x 3) at ``speed``
+    m/s; with ``std`` also road_height_std (m)."""
+    est = SuspensionEstimator(m_s_nominal=v.m_s, m_u=v.m_u, k_s=v.k_s, k_t=v.k_t, c_s=v.c_s,
+                              acc_sprung_noise_std=told.acc_sprung, acc_unsprung_noise_std=told.acc_unsprung,
+                              defl_noise_std=told.deflection)
+    out = np.array([(o["road_height_est"], o["sprung_mass_est"], o["road_height_std"])
                     for o in (est.step(z[0], z[1], z[2], speed, H) for z in meas)])
-    return out[:, 0], out[:, 1]
+    return (out[:, 0], out[:, 1], out[:, 2]) if std else (out[:, 0], out[:, 1])
 
 
 def scores(t: np.ndarray, road_est: np.ndarray, mass_est: np.ndarray, road: np.ndarray,
-           load: float, distance: np.ndarray) -> tuple[float, float]:
+           load: float, distance: np.ndarray, road_std: np.ndarray | None = None) -> tuple[float, ...]:
     """(HP road error std %, mean sprung-mass error % against ``load`` kg) after the warm-up;
-    ``distance``: m travelled at each sample."""
-    hp = road_scores(t, road_est, road, warmup=WARMUP, distance=distance)["err_std_hp_pct"]
-    return hp, float(100 * (np.mean(mass_est[t >= WARMUP]) / load - 1))
+    ``distance``: m travelled at each sample; with ``road_std`` (m) also the share of samples
+    whose profile error is within +-2 of it."""
+    r = road_scores(t, road_est, road, road_std, warmup=WARMUP, distance=distance)
+    out = (r["err_std_hp_pct"], float(100 * (np.mean(mass_est[t >= WARMUP]) / load - 1)))
+    return out if road_std is None else (*out, r["coverage_2sigma"])
 
 
-def cell(p: HalfCarParams, cls: int, speed: float, duration: float, seeds: range) -> dict:
+def scaled(noise: SensorNoise, factor: float) -> SensorNoise:
+    return SensorNoise(factor * noise.acc_sprung, factor * noise.acc_unsprung, factor * noise.deflection)
+
+
+def cell(p: HalfCarParams, cls: int, speed: float, duration: float, seeds: range, noise: float = 1.0,
+         told: float = 1.0) -> dict:
     """Per corner the means over ``seeds`` of (HP % half car, HP % quarter car, mass % half car,
-    mass % quarter car)."""
+    mass % quarter car, coverage half car, coverage quarter car): the plants' sensor noise
+    ``noise`` times SensorNoise(), the estimators told ``told`` times that."""
+    plant_noise = scaled(SensorNoise(), noise)
+    told_noise = scaled(plant_noise, told)
     runs = {c: [] for c in CORNERS}
     for seed in seeds:
-        half = drive_half_car(p, cls, speed, duration, seed)
+        half = drive_half_car(p, cls, speed, duration, seed, plant_noise)
         for c in CORNERS:
             v = corner_vehicle(p, c)
             meas, road = half[c]
-            hc = scores(half["t"], *estimate(meas, v, speed), road, v.m_s, speed * half["t"])
-            qmeas, qroad = drive_quarter_car(v, cls, speed, duration, seed, 0.0 if c == "front" else p.wheelbase)
-            qc = scores(half["t"], *estimate(qmeas, v, speed), qroad, v.m_s, speed * half["t"])
-            runs[c].append((hc[0], qc[0], hc[1], qc[1]))
+            d = speed * half["t"]
+            est_h = estimate(meas, v, speed, told_noise, std=True)
+            hc = scores(half["t"], est_h[0], est_h[1], road, v.m_s, d, est_h[2])
+            qmeas, qroad = drive_quarter_car(v, cls, speed, duration, seed, 0.0 if c == "front" else p.wheelbase,
+                                             plant_noise)
+            est_q = estimate(qmeas, v, speed, told_noise, std=True)
+            qc = scores(half["t"], est_q[0], est_q[1], qroad, v.m_s, d, est_q[2])
+            runs[c].append((hc[0], qc[0], hc[1], qc[1], hc[2], qc[2]))
     return {c: np.mean(r, axis=0) for c, r in runs.items()}
 
 
@@ -248,27 +270,31 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--speeds", default="40,80", help="km/h")
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--duration", type=float, default=60.0, help="s (the first 10 s are not scored)")
+    ap.add_argument("--noise", type=float, default=1.0, help="factor on the plants' sensor noise")
+    ap.add_argument("--told-noise", type=float, default=1.0, help="factor on the noise the estimators are told")
     ap.add_argument("--fmu-check", action="store_true", help="also one run (ISO C, 40 km/h, seed 1) through the FMUs")
     ap.add_argument("--apparent-mass", action="store_true", help="also print m_eff(f) of each corner")
     ap.add_argument("--observer", action="store_true", help="also score the half car's own observer's road")
     a = ap.parse_args(argv)
-    if a.duration <= WARMUP or a.seeds < 1:
-        print(f"error: --duration must exceed {WARMUP} s and --seeds be >= 1", file=sys.stderr)
+    if a.duration <= WARMUP or a.seeds < 1 or not (0 < a.noise <= 100 and 0 < a.told_noise <= 100):
+        print(f"error: --duration must exceed {WARMUP} s, --seeds be >= 1, --noise and --told-noise in (0, 100]",
+              file=sys.stderr)
         return 1
     p = DEFAULT_HALF_CAR
     print(f"half car: defaults, dynamic index {dynamic_index(p):.3f}; corner loads front "
-          f"{corner_load(p, 'front'):.1f} kg, rear {corner_load(p, 'rear'):.1f} kg; {a.seeds} seeds of {a.duration:g} s\n")
+          f"{corner_load(p, 'front'):.1f} kg, rear {corner_load(p, 'rear'):.1f} kg; {a.seeds} seeds of {a.duration:g} s; "
+          f"sensor noise x{a.noise:g}, told x{a.told_noise:g}\n")
     print("| ISO | km/h | corner | HP % half car | HP % quarter car | ratio | mass % half car | mass % quarter car | "
-          f"HP within {RATIO}x |\n|---|---|---|---|---|---|---|---|---|")
+          f"+-2 std coverage half / quarter | HP within {RATIO}x |\n|---|---|---|---|---|---|---|---|---|---|")
     speeds = [float(v) for v in a.speeds.split(",")]
     for letter in filter(None, a.classes.split(",")):
         cls = "ABCDEFGH".index(letter.strip().upper()) + 1
         for kmh in speeds:
-            res = cell(p, cls, kmh / 3.6, a.duration, range(1, a.seeds + 1))
+            res = cell(p, cls, kmh / 3.6, a.duration, range(1, a.seeds + 1), a.noise, a.told_noise)
             for c in CORNERS:
-                hh, hq, mh, mq = res[c]
+                hh, hq, mh, mq, ch, cq = res[c]
                 print(f"| {letter.strip().upper()} | {kmh:g} | {c} | {hh:.2f} | {hq:.2f} | {hh / hq:.2f} | {mh:+.2f} | "
-                      f"{mq:+.2f} | {'PASS' if hh <= RATIO * hq else 'MISS'} |", flush=True)
+                      f"{mq:+.2f} | {ch:.2f} / {cq:.2f} | {'PASS' if hh <= RATIO * hq else 'MISS'} |", flush=True)
     if a.observer:
         print("\nthe half car's observer (HalfCarObserver, IMMAKF5), HP road error std %\n"
               "| ISO | km/h | front | rear |\n|---|---|---|---|")

@@ -21,14 +21,14 @@ F = np.array([0.1, 0.5, 1.0, 1.3, 2.0, 5.0, 11.4, 30.0])  # Hz
 
 @pytest.fixture(scope="module")
 def iso_c_40():
-    """Per corner (HP % half car, HP % quarter car, mass % half car, mass % quarter car): ISO C,
-    40 km/h, seed 1, 20 s (scored after 10 s)."""
+    """Per corner (HP % half car, HP % quarter car, mass % half car, mass % quarter car, coverage
+    half car, coverage quarter car): ISO C, 40 km/h, seed 1, 20 s (scored after 10 s)."""
     return bench.cell(DEFAULT_HALF_CAR, 3, SPEEDS[0], 20.0, range(1, 2))
 
 
 @pytest.mark.parametrize("corner", bench.CORNERS)
 def test_the_estimator_on_a_corner_is_near_its_quarter_car_figure(iso_c_40, corner):
-    hp_half, hp_quarter, mass_half, mass_quarter = iso_c_40[corner]
+    hp_half, hp_quarter, mass_half, mass_quarter = iso_c_40[corner][:4]
     assert np.isfinite([hp_half, hp_quarter, mass_half, mass_quarter]).all()
     # 60 s, 3 seeds: 2.3-2.5 % on the quarter car; on the half car 1.5x (front), 2.2x (rear)
     assert hp_quarter < 3.5
@@ -87,3 +87,36 @@ def test_pitch_coupling_alone_puts_the_1_3x_target_out_of_reach_of_any_fixed_mas
         p = P.with_(pitch_inertia=0.95 * P.m_s * P.l_f * P.l_r)
         best = bench.coupling_error(p, speed, corner)[1]
         assert bench.coupling_error(p, speed, corner, best)[0] < allowed, (speed, allowed)
+
+
+@pytest.fixture(scope="module")
+def iso_b_40():
+    """As iso_c_40 on ISO B (half ISO C's amplitude, the same seed)."""
+    return bench.cell(DEFAULT_HALF_CAR, 2, SPEEDS[0], 20.0, range(1, 2))
+
+
+def test_the_corners_excess_on_iso_b_is_the_sensor_noise_against_a_smaller_road(iso_c_40, iso_b_40):
+    """The plants are linear in the road and the sensor noise together: ISO B with HalfCar's noise
+    is ISO C with twice that noise, scaled by 1/2. The corner's error on ISO B is that of ISO C seen
+    through twice the noise (within 15 %; the estimator's class-scheduled road noise is not
+    linear), several times ISO C's: the filter leans more on its model, which the pitch coupling
+    makes wrong, when the road is small against the noise. The quarter car, whose model is right,
+    loses little (measured, seed 1, 40 s: corner 15.3 / 21.6 % on B, 14.6 / 21.2 % on C with twice
+    the noise, 4.0 / 4.6 % on C; quarter car 2.3 / 2.1 % on B)."""
+    c2 = bench.cell(DEFAULT_HALF_CAR, 3, SPEEDS[0], 20.0, range(1, 2), noise=2.0)
+    for corner in bench.CORNERS:
+        assert c2[corner][0] == pytest.approx(iso_b_40[corner][0], rel=0.15), (c2, iso_b_40)
+        assert iso_b_40[corner][0] > 2.0 * iso_c_40[corner][0]
+        assert iso_b_40[corner][1] < 1.5 * iso_c_40[corner][1]
+
+
+def test_told_half_the_noise_the_corner_on_iso_b_is_near_its_iso_c_figure(iso_b_40):
+    """What a user of a coupled car can do: tell the estimator half its sensors' noise. On ISO B
+    the corner's error falls several times and +-2 road_height_std still covers it; the quarter
+    car's is not worse (measured, seed 1, 40 s: 15.3 / 21.6 -> 3.8 / 4.0 %, coverage 0.63 / 0.76
+    -> 1.00; quarter car 2.3 / 2.1 -> 2.3 / 2.1 %)."""
+    told = bench.cell(DEFAULT_HALF_CAR, 2, SPEEDS[0], 20.0, range(1, 2), told=0.5)
+    for corner in bench.CORNERS:
+        assert told[corner][0] < 0.5 * iso_b_40[corner][0], (told, iso_b_40)
+        assert told[corner][1] < 1.2 * iso_b_40[corner][1]
+        assert told[corner][4] > 0.9
