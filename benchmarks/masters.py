@@ -9,6 +9,7 @@ At a 1 ms step, ``--seconds`` of simulated time (default 2), the best of ``--rep
 - simulate_fmu (estimator): ``fmpy.simulate_fmu`` of SuspensionEstimator.fmu alone, its inputs a
   table of the harness's plant measurements (FMPy steps on its own time grid);
 - libcosim: ``libcosimpy`` on RoadPlantEstimator.ssp (its fixed-step algorithm, 1 ms from the SSP);
+- Ecos: ``ecospy`` on RoadPlantEstimator.ssp (1 ms; needs Debian's libtbb12);
 - container (FMPy): ``fmpy.simulate_fmu`` of SuspensionSystem.fmu (fmucontainer's C master inside).
 
 Prints a markdown table (wall time, real-time factor = simulated / wall time, µs per step).
@@ -97,12 +98,26 @@ def libcosim(dist: Path, seconds: float) -> Callable[[], None]:
     return run
 
 
+def ecos(dist: Path, seconds: float) -> Callable[[], None]:
+    from ecospy import EcosSimulation
+
+    kept = []  # never freed, as libcosim's executions
+
+    def run() -> None:
+        sim = EcosSimulation(step_size=H, ssp_path=str((dist / f"{ROAD_PLANT_ESTIMATOR}.ssp").resolve()))
+        kept.append(sim)
+        sim.init()
+        sim.step(round(seconds / H))
+    return run
+
+
 def container(dist: Path, seconds: float) -> Callable[[], None]:
     return _simulate_fmu(dist / "SuspensionSystem.fmu", seconds, output=["SuspensionEstimator.road_height_est"])
 
 
 MASTERS = {"harness (FMPy, Gauss-Seidel)": harness, "fmpy.simulate_fmu (estimator alone)": simulate_estimator,
-           "libcosim (RoadPlantEstimator.ssp)": libcosim, "container SuspensionSystem.fmu (FMPy)": container}
+           "libcosim (RoadPlantEstimator.ssp)": libcosim, "Ecos (RoadPlantEstimator.ssp)": ecos,
+           "container SuspensionSystem.fmu (FMPy)": container}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,8 +1,9 @@
-"""libcosim as a second master: each FMU alone and the shipped SSP systems run in it and give the
-harness's numbers once its coupling is accounted for.
+"""libcosim and Ecos as second and third masters: each FMU alone and the shipped SSP systems run in
+them and give the harness's numbers once their coupling is accounted for.
 
 libcosim's fixed-step algorithm steps every FMU on the inputs it holds, then moves each
-connection's value: every connection lags one step. It initializes the FMUs with the connected
+connection's value: every connection lags one step. Ecos (ecos_driver) does the same, and its
+numbers are libcosim's to the same tolerances. It initializes the FMUs with the connected
 inputs at the values the outputs have in initialization mode (0.0 for these FMUs, which compute
 their outputs when initialization ends), then moves the values once before the first step. So
 for n steps, with the harness's road r_0 (after initialization) .. r_n:
@@ -26,6 +27,7 @@ from fmpy.ssp.ssd import read_ssd
 from fmu_driver import Driven
 from suspension_estimation.harness.cosim import CoSimulation
 from suspension_estimation.harness.ssp import ROAD_PLANT, ROAD_PLANT_ESTIMATOR, SYSTEMS, read_ssp
+from ecos_driver import Ecos
 from libcosim_driver import Libcosim
 
 H = 1e-3  # s
@@ -37,6 +39,7 @@ REL = 1e-9
 # a one-step coupling error would differ by ~1e-2.
 REL_CLOSED_LOOP_ESTIMATOR = 1e-8
 MEASURED = ("acc_sprung", "acc_unsprung", "susp_deflection")
+MASTERS = {"libcosim": Libcosim, "Ecos": Ecos}
 # the quarter-car systems; HalfCarLoop has its own tests (test_paper002.py)
 QUARTER_CAR_SYSTEMS = [n for n in SYSTEMS if "QuarterCar" in SYSTEMS[n][0]]
 
@@ -66,13 +69,14 @@ def _live_inputs(dist, n: int) -> dict[str, dict[str, np.ndarray]]:
                                     "vehicle_speed": np.full(n, V)}}
 
 
+@pytest.mark.parametrize("master", MASTERS)
 @pytest.mark.parametrize("name", ["ISORoad", "QuarterCar", "SuspensionEstimator"])
-def test_each_fmu_alone_in_libcosim_equals_the_fmu_driven_directly(dist, name):
+def test_each_fmu_alone_in_a_master_equals_the_fmu_driven_directly(dist, name, master):
     fmu = dist / f"{name}.fmu"
     n = 400
     inputs = _live_inputs(dist, n)[name]
     outputs = _outputs(fmu)
-    sim = Libcosim.from_fmus({name: fmu}, H)
+    sim = MASTERS[master].from_fmus({name: fmu}, H)
     got = sim.run(n, [f"{name}.{o}" for o in outputs], {f"{name}.{k}": v for k, v in inputs.items()})
     assert sim.time == pytest.approx(n * H, abs=1e-12)
     d = Driven(fmu, {})
@@ -113,11 +117,13 @@ def _lagged_plant(dist, road: np.ndarray, n: int) -> tuple[np.ndarray, list[str]
     return np.array(rows), outputs, np.array(measured)
 
 
+@pytest.mark.parametrize("master", MASTERS)
 @pytest.mark.parametrize("name", QUARTER_CAR_SYSTEMS)
-def test_shipped_ssp_in_libcosim_matches_the_harness_up_to_its_lag(dist, name):
+def test_shipped_ssp_in_a_master_matches_the_harness_up_to_its_lag(dist, name, master):
     n = 600
     order = SYSTEMS[name][0]
-    sim = Libcosim.from_ssp(dist / f"{name}.ssp")  # its 1 ms step from the SSP's default experiment
+    # libcosim takes its 1 ms step from the SSP's default experiment; Ecos is given it
+    sim = Libcosim.from_ssp(dist / f"{name}.ssp") if master == "libcosim" else Ecos.from_ssp(dist / f"{name}.ssp", H)
     plant_out = _outputs(dist / "QuarterCar.fmu")
     est_out = _outputs(dist / "SuspensionEstimator.fmu") if "SuspensionEstimator" in order else []
     names = (["ISORoad.road_height", "ISORoad.distance"] + [f"QuarterCar.{o}" for o in plant_out]

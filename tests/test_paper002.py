@@ -1,12 +1,13 @@
 """Paper 002's closed loop (harness/studies/paper002.py): its Fig. 6 scenario run short through the
 built FMUs, the study through ``paper --study paper002``, and the HalfCarLoop SSP in FMPy's SSP
-runner and in libcosim against the harness's Jacobi master."""
+runner, libcosim and Ecos against the harness's Jacobi master."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 from fmpy.ssp.simulation import simulate_ssp
 
+from ecos_driver import Ecos
 from libcosim_driver import Libcosim
 from suspension_estimation.harness.cosim import GAUSS_SEIDEL, JACOBI, CoSimulation
 from suspension_estimation.harness.ssp import HALF_CAR_LOOP, read_ssp
@@ -116,8 +117,9 @@ def _check_against_the_harness(got: dict[str, np.ndarray], harness_loop) -> None
     assert _rms(got[acc]) > 1.08 * _rms(harness_loop[False][acc])
 
 
-def test_half_car_loop_ssp_in_libcosim_is_the_harness_jacobi_loop(dist, harness_loop):
-    sim = Libcosim.from_ssp(dist / f"{HALF_CAR_LOOP}.ssp", H)
+@pytest.mark.parametrize("master", [Libcosim, Ecos], ids=["libcosim", "Ecos"])
+def test_half_car_loop_ssp_in_a_master_is_the_harness_jacobi_loop(dist, harness_loop, master):
+    sim = master.from_ssp(dist / f"{HALF_CAR_LOOP}.ssp", H)
     got = dict(zip(RECORD, sim.run(N, RECORD).T))
     assert sim.time == pytest.approx(N * H, abs=1e-9)
     _check_against_the_harness(got, harness_loop)

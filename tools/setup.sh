@@ -29,5 +29,15 @@ else
   rm -f "$log"
   echo "$want" >"$stamp"
 fi
+if ! ldconfig -p 2>/dev/null | grep -q 'libtbb\.so\.12'; then
+  # Ecos (ecospy, the tests' third master) links Intel TBB: Debian's libtbb12
+  say "installing Debian's libtbb12 for Ecos (apt-get)"
+  sudo=""
+  [ "$(id -u)" = 0 ] || sudo=sudo
+  if ! { $sudo apt-get install -y -q libtbb12 >/dev/null 2>&1 ||
+         { $sudo apt-get update -q >/dev/null 2>&1 && $sudo apt-get install -y -q libtbb12 >/dev/null 2>&1; }; }; then
+    say "could not install libtbb12: run 'apt-get install libtbb12' as root; the Ecos tests fail without it"
+  fi
+fi
 say "building the FMUs into dist/ (a few seconds; what is up to date is kept)"
 .venv/bin/python build.py
