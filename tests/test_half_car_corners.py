@@ -30,7 +30,7 @@ def iso_c_40():
 def test_the_estimator_on_a_corner_is_near_its_quarter_car_figure(iso_c_40, corner):
     hp_half, hp_quarter, mass_half, mass_quarter = iso_c_40[corner][:4]
     assert np.isfinite([hp_half, hp_quarter, mass_half, mass_quarter]).all()
-    # 60 s, 3 seeds: 2.3-2.5 % on the quarter car; on the half car 1.5x (front), 2.2x (rear)
+    # 60 s, 3 seeds: 1.7-1.8 % on the quarter car; on the half car 1.9x (front), 2.3x (rear)
     assert hp_quarter < 3.5
     assert hp_half < 3.5 * hp_quarter, iso_c_40
     assert abs(mass_quarter) < 1.0
