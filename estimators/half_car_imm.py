@@ -40,7 +40,7 @@ from .half_car_kf import (ESTIMATES, IQF, N_STATES, ROAD_NOISE_RULES, HalfCarKF,
 from .imm import IMM, transition_matrix
 from .kalman import LinearKF, stationary_covariance
 from .road_class import RoadClassifier
-from .sensor_check import CONSISTENT, INCONSISTENT
+from .sensor_check import CONSISTENT, InnovationRatio
 
 # code -> (mass sub-models: 0 = one filter, None = imm_models; Q switched by the identified grade)
 CODES: dict[int, tuple[int | None, bool]] = {0: (0, False), 1: (0, True), 2: (None, False), 3: (3, True),
@@ -139,32 +139,6 @@ class MassBank:
     @property
     def mass_std(self) -> float:
         return float(math.sqrt(max(self.imm.mu @ (self.masses - self.mass) ** 2, 0.0)))
-
-
-class InnovationRatio:
-    """Is the car what the observer's model says? The exponential average over ``window`` s of
-    NIS / m, the normalised innovation squared of each update over its number of measurements:
-    1 on average when the car and the sensors are the model's (0.7-0.9 measured: the IMM's mixing),
-    larger when they are not. Above ``limit`` the state is INCONSISTENT. Not clipped: its square
-    root scales the output stds (covariance matching), and a pothole the linear model does not
-    hold is as much a reason to widen them as a wrong spring."""
-
-    def __init__(self, window: float = 1.0, limit: float = 2.5):
-        self.window, self.limit = float(window), float(limit)
-        self.ratio = 1.0
-        self.age = 0.0  # s averaged
-        self.state = CONSISTENT
-
-    def update(self, nis: float, m: int, h: float) -> str:
-        self.ratio += min(1.0, h / self.window) * (nis / m - self.ratio)
-        self.age += h
-        self.state = INCONSISTENT if self.age >= self.window and self.ratio > self.limit else CONSISTENT
-        return self.state
-
-    @property
-    def std_scale(self) -> float:
-        """The factor on the filter's stds: sqrt(ratio), at least 1."""
-        return math.sqrt(max(self.ratio, 1.0))
 
 
 class HalfCarObserver:

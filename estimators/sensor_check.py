@@ -26,6 +26,9 @@ What the test cannot see: errors the filter's states absorb whole, a deflection 
 default filter's force-bias state takes it as a force: tests/test_sensor_check.py) and a
 body-accelerometer gain error (the mass takes it up); and it cannot tell a sensor error from a
 suspension far from the model (the air-spring plant on ISO D).
+
+``InnovationRatio`` is the plain form the half-car observer (half_car_imm.py) uses: the average
+NIS per measurement, no allowance, no clip; its square root widens that observer's stds.
 """
 from __future__ import annotations
 
@@ -101,3 +104,29 @@ class InnovationCheck:
             if self._clear >= self.hold:
                 self.state = CONSISTENT
         return self.state
+
+
+class InnovationRatio:
+    """Is the car what the observer's model says? The exponential average over ``window`` s of
+    NIS / m, the normalised innovation squared of each update over its number of measurements:
+    1 on average when the car and the sensors are the model's (0.7-0.9 measured: the IMM's mixing),
+    larger when they are not. Above ``limit`` the state is INCONSISTENT. Not clipped: its square
+    root scales the output stds (covariance matching), and a pothole the linear model does not
+    hold is as much a reason to widen them as a wrong spring."""
+
+    def __init__(self, window: float = 1.0, limit: float = 2.5):
+        self.window, self.limit = float(window), float(limit)
+        self.ratio = 1.0
+        self.age = 0.0  # s averaged
+        self.state = CONSISTENT
+
+    def update(self, nis: float, m: int, h: float) -> str:
+        self.ratio += min(1.0, h / self.window) * (nis / m - self.ratio)
+        self.age += h
+        self.state = INCONSISTENT if self.age >= self.window and self.ratio > self.limit else CONSISTENT
+        return self.state
+
+    @property
+    def std_scale(self) -> float:
+        """The factor on the filter's stds: sqrt(ratio), at least 1."""
+        return math.sqrt(max(self.ratio, 1.0))
