@@ -311,7 +311,7 @@ def test_fmu_state_round_trip_replays_the_run(driven):
     ({"m_s_nominal": 0.0}, "m_s_nominal"), ({"estimator": 5}, "estimator"), ({"sensors": 2}, "sensors"),
     ({"imm_models": 1}, "imm_models"), ({"imm_stay": 1.0}, "imm_stay"), ({"road_class": 9}, "road_class"),
     ({"velocity_noise_std": 0.0}, "velocity_noise_std"), ({"defl_noise_std": -1e-3}, "defl_noise_std"),
-    ({"road_noise": 2}, "road_noise"),
+    ({"road_noise": 2}, "road_noise"), ({"force_error_q": -1.0}, "force_error_q"),
 ])
 def test_unphysical_parameters_are_refused_naming_the_variable_and_its_range(driven, params, name):
     from fmpy.fmi1 import FMICallException

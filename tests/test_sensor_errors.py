@@ -356,6 +356,7 @@ def test_estimator_not_told_the_calibration_is_measurably_worse(calibrated):
     ({"acc_unsprung_delay": 0.1}, "acc_unsprung_delay"), ({"acc_sprung_scale": 0.0}, "acc_sprung_scale"),
     ({"deflection_offset": -0.2}, "deflection_offset"), ({"acc_unsprung_bias": float("inf")}, "acc_unsprung_bias"),
     ({"calibration_gain_std": -0.01}, "calibration_gain_std"), ({"calibration_delay_std": 1.0}, "calibration_delay_std"),
+    ({"profile_cutoff": 0.5}, "profile_cutoff"),
 ])
 def test_estimator_refuses_an_out_of_range_calibration_naming_it(dist, params, name):
     """Impossible calibration (a scale of 0 would divide by zero) is refused when initialization
