@@ -35,8 +35,8 @@ import numpy as np
 from ..plant.half_car import DEFAULT_HALF_CAR, HalfCarParams
 from ..plant.quarter_car import SensorNoise
 from ..plant.step_size import same_step
-from .half_car_kf import (ESTIMATES, IQF, N_STATES, ROAD_NOISE_RULES, HalfCarKF, HalfCarModel, equilibrium, estimate_matrix,
-                          measurement_noise)
+from .half_car_kf import (ESTIMATES, IQF, ROAD_NOISE_RULES, HalfCarKF, HalfCarModel, equilibrium, estimate_matrix,
+                          has_force_errors, measurement_noise, state_count)
 from .imm import IMM, transition_matrix
 from .kalman import LinearKF, stationary_covariance
 from .road_class import RoadClassifier
@@ -168,9 +168,7 @@ class HalfCarObserver:
         models, self.adaptive = CODES[s.estimator]
         self.R = measurement_noise(s.sensors, s.acc_sprung_noise_std, s.acc_unsprung_noise_std, s.defl_noise_std,
                                    s.velocity_noise_std)
-        # velocity sensors see no steady force error (it moves only positions): no such states
-        self.force_error_q = float(s.force_error_q) if s.sensors == 0 else 0.0
-        n = N_STATES + 2 * (self.force_error_q > 0.0)
+        n = state_count(has_force_errors(s.sensors, s.force_error_q))
         self.T = estimate_matrix(self.params, n)
         self.x0 = equilibrium(self.params, forces, n)
         self.road_class = int(s.road_class)  # the class Q is built for
@@ -192,10 +190,10 @@ class HalfCarObserver:
         P0 = ss[1] if ss is not None else np.eye(len(self.x0)) * 1e-4
         masses = np.linspace(self.settings.imm_mass_min, self.settings.imm_mass_max, self.n_models)
         self.filter = MassBank(self.params, masses, h, self.settings.sensors, self.R, self.settings.imm_stay,
-                               self.x0, P0, self.force_error_q)
+                               self.x0, P0, self.settings.force_error_q)
 
     def _model(self, params: HalfCarParams, h: float) -> HalfCarModel:
-        return HalfCarModel.build(params, h, self.settings.sensors, self.force_error_q)
+        return HalfCarModel.build(params, h, self.settings.sensors, self.settings.force_error_q)
 
     def step(self, measured, forces, speed: float, h: float) -> dict[str, float]:
         if self.filter is None:

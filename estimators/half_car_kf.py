@@ -49,7 +49,7 @@ of the body proportional to the deflection (the model's spring force must be bal
 damper force), and an LQR fed those velocities acts as a negative spring: the closed loop of
 paper 002 diverges in pitch (docs/half-car-estimator.md). The velocities of the paper's sensors
 (sensors 1) are not affected, and they cannot see a steady force error (it moves only positions,
-which they do not measure): with them the observer has no force-error states. force_error_q = 0
+which they do not measure): with them the model has none (``has_force_errors``). force_error_q = 0
 is the paper's 10-state model.
 
 The road states hold the absolute road level only weakly (the 0.01 Hz pole), and no sensor of
@@ -85,11 +85,22 @@ ESTIMATES = ("heave_velocity", "pitch_rate", "v_u_front", "v_u_rear", "susp_defl
 MIN_SPEED = 0.1  # m/s: the road noise of a slower car, so that a standing car's filter still listens
 
 
+def has_force_errors(sensors: int, force_error_q: float) -> bool:
+    """Whether the model carries the force-error states: asked for (``force_error_q`` > 0, N^2/s)
+    and seen by the sensor set (0: velocities see no steady force, module doc)."""
+    return force_error_q > 0.0 and sensors == 0
+
+
+def state_count(force_errors: bool) -> int:
+    """States of the model: the paper's 10, and the two force errors."""
+    return N_STATES + 2 * bool(force_errors)
+
+
 def continuous_model(p: HalfCarParams, force_errors: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """A (n x n, 1/s) and B (n x 2) of x' = A x + B u + noise, u = [f_f, f_r] (N): eq. 8 with eq.
     4's pitch row corrected (plant/half_car.py); n = 10, or 12 with the force errors, which act
     on the vehicle as the forces do."""
-    n = N_STATES + 2 * bool(force_errors)
+    n = state_count(force_errors)
     A8, B8 = state_matrices(p)  # x = [q, q'], u = [q_f, q_r, f_f, f_r]
     A = np.zeros((n, n))
     A[:8, :8] = A8
@@ -104,7 +115,7 @@ def continuous_model(p: HalfCarParams, force_errors: bool = False) -> tuple[np.n
 
 def output_matrices(p: HalfCarParams, sensors: int, force_errors: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """C (m x n) and D (m x 2) of the measurements of sensor set ``sensors`` (module doc)."""
-    n = N_STATES + 2 * bool(force_errors)
+    n = state_count(force_errors)
     if sensors == 1:
         C = np.zeros((4, n))
         C[:, IVZ:IVZ + 4] = np.eye(4)
@@ -157,7 +168,7 @@ def paper_road_velocity(d: float) -> float:
 class HalfCarModel:
     """The discretised observer model of one half car (its ``params.m_s`` the model's sprung
     mass) at a step h (s): x_k = Phi x_{k-1} + Bd u + w_k, y_k = C x_k + D u + v_k; 10 states,
-    12 with ``force_error_q`` > 0 (N^2/s, module doc).
+    12 with the force errors (``has_force_errors``, module doc).
 
     ``Q_iso`` is the roads' part of Q_d at unit road intensity (Qc = 1 m^2/s on each road): it
     scales with the intensity; ``Q_paper`` is Gamma Gamma' (s^2), eq. 38's Q at Q_RV = 1 m/s;
@@ -176,7 +187,7 @@ class HalfCarModel:
 
     @classmethod
     def build(cls, params: HalfCarParams, h: float, sensors: int, force_error_q: float = 0.0) -> "HalfCarModel":
-        force_errors = force_error_q > 0.0
+        force_errors = has_force_errors(sensors, force_error_q)
         A, B = continuous_model(params, force_errors)
         n = len(A)
         A0 = A.copy()
