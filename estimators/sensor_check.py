@@ -18,7 +18,19 @@ delay; sigma_t (s) and sigma_g (1) are the allowance's delay and gain stds.
 
 The check compares the ratio r_i = <min(y_i^2, 9 s_i)> / <s_i> (both averaged exponentially over
 ``window`` s; the clip keeps a road's discrete events, bursts of tens of ms, out of it)
-with ``limit``: above it on any channel the filter is ``INCONSISTENT``, and stays so until the
+with ``limit``, and on the channels ``mean_channels`` the innovations' mean over the same window,
+m_i = <y_i>, with its std under the same assumptions,
+
+    u_i = sqrt(<S_ii> a / (2 - a) + sigma_t^2 sum_j <G_ij [-dz_j/dt]>^2 + sigma_g^2 sum_{j accel.} <G_ij [z_j]>^2),
+
+a = h / window (the exponential average of white noise of variance s has variance s a / (2 - a));
+|m_i| / u_i above ``mean_limit`` is a step the filter is taking up. A bias that appears mid-run
+(a body accelerometer's bias stepping by 0.5 m/s^2) is taken up by the force-bias state within
+seconds, so it leaves the innovations' variance as it was, but while it is taken up the whole
+car is read as accelerating: the profile is wrong by decimetres for tens of seconds, and the
+wheel's innovations, which the force-error states hardly reach (the whole-corner balance ties
+the wheel to the body), keep a mean of the step's size meanwhile. Above either limit on any
+channel the filter is ``INCONSISTENT``, and stays so until the
 ratios are back below it and the car has travelled ``hold`` metres more (the filter's states
 take up what is left of the error slowly, and the profile's high-pass carries it further). The
 numbers behind the limit and the hold are in tuning.py (``diagnosis_*``) and docs/real-sensors.md.
@@ -50,8 +62,10 @@ class InnovationCheck:
     the state stays inconsistent after the ratios are back."""
 
     def __init__(self, dim_z: int, n_acc: int, gain_std: float, delay_std: float, window: float,
-                 limit: float, hold: float, start: float = 0.0):
+                 limit: float, hold: float, start: float = 0.0, mean_channels: tuple[int, ...] = (),
+                 mean_limit: float = math.inf):
         self.dim_z, self.n_acc = dim_z, n_acc
+        self.mean_channels, self.mean_limit = np.array(mean_channels, dtype=int), float(mean_limit)
         self.gain_var, self.delay_var = gain_std ** 2, delay_std ** 2
         self.window, self.limit, self.hold, self.start = window, limit, hold, start
         # the error sources, one column each: a delay on each channel, a gain on each accelerometer
@@ -65,6 +79,10 @@ class InnovationCheck:
         self.state = CONSISTENT
         self._num = np.zeros(self.dim_z)
         self._den = np.zeros(self.dim_z)
+        self._mean = np.zeros(self.dim_z)  # <y_i>
+        self._s = np.zeros(self.dim_z)  # <S_ii>
+        self._dy_mean = None  # <G_ij e_j>, one column per error source
+        self._h = math.nan  # s, the last step
         self._dx = None  # the error responses, one column per error source
         self._last = None  # the previous prediction H x_k|k-1
         self._age = 0.0  # s averaged so far
@@ -74,6 +92,16 @@ class InnovationCheck:
     def ratio(self) -> np.ndarray:
         """Each channel's averaged innovation variance over the expected (0 before the first update)."""
         return np.divide(self._num, self._den, out=np.zeros(self.dim_z), where=self._den > 0)
+
+    @property
+    def mean_ratio(self) -> np.ndarray:
+        """|m_i| / u_i on each channel of ``mean_channels`` (0 before the first update)."""
+        if self._dy_mean is None or not self.mean_channels.size:
+            return np.zeros(self.mean_channels.size)
+        i = self.mean_channels
+        a = min(1.0, self._h / self.window)
+        var = self._s[i] * a / (2.0 - a) + (self._dy_mean[i] ** 2) @ self._weights
+        return np.divide(np.abs(self._mean[i]), np.sqrt(var), out=np.zeros(i.size), where=var > 0)
 
     def update(self, y: np.ndarray, S: np.ndarray, prediction: np.ndarray, F: np.ndarray, K: np.ndarray,
                H: np.ndarray, h: float, ds: float) -> str:
@@ -94,10 +122,17 @@ class InnovationCheck:
         expected = S.diagonal() + (dy * dy) @ self._weights
         self._num += a * (np.minimum(y * y, CLIP * expected) - self._num)
         self._den += a * (expected - self._den)
+        if self.mean_channels.size:
+            if self._dy_mean is None or self._dy_mean.shape != dy.shape:
+                self._dy_mean = np.zeros_like(dy)
+            self._mean += a * (y - self._mean)
+            self._s += a * (S.diagonal() - self._s)
+            self._dy_mean += a * (dy - self._dy_mean)
+            self._h = h
         self._age += h
         if self._age < max(self.window, self.start):
             return self.state
-        if np.any(self._num > self.limit * self._den):
+        if np.any(self._num > self.limit * self._den) or np.any(self.mean_ratio > self.mean_limit):
             self.state, self._clear = INCONSISTENT, 0.0
         else:
             self._clear += ds

@@ -393,7 +393,8 @@ class SuspensionEstimator:
                                for k in ("calibration_gain_std", "calibration_delay_std"))
         self.check = (InnovationCheck(dim_z, 2, gain_std, delay_std,
                                       cfg.tuning.diagnosis_window, cfg.tuning.diagnosis_limit,
-                                      cfg.tuning.diagnosis_hold * cfg.profile_cutoff, cfg.tuning.diagnosis_start)
+                                      cfg.tuning.diagnosis_hold * cfg.profile_cutoff, cfg.tuning.diagnosis_start,
+                                      (1,), cfg.tuning.diagnosis_mean_limit)
                       if cfg.road_estimator != 1 else None)
         self._band_cache: tuple | None = None  # (model, class, ratio): see _band_ratio
         self.model: DiscreteModel | None = None

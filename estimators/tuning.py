@@ -124,6 +124,12 @@ class Tuning:
     diagnosis_window: float = 1.0
     diagnosis_limit: float = 2.5
     diagnosis_start: float = 3.0
+    # ... or the wheel accelerometer's innovations' mean over diagnosis_window s above this many of
+    # its stds: a bias the filter is taking up (sensor_check.py). At most 0.9 on ideal sensors, 0.7
+    # on the robustness grid's linear vehicles, 2.5 on the air-spring plant, 3.8 on a 3 % grade at
+    # 72 km/h, 6.0 with every error at the end of its range, 7.1 with a 30 mm deflection offset;
+    # a body bias of 0.5 m/s2 22 (docs/real-sensors.md)
+    diagnosis_mean_limit: float = 8.0
     # status 3 is held until the car has gone this many profile_cutoff lengths with the ratios back
     # below the limit: after a body-accelerometer bias stepping by 1 m/s2 (ISO C, 40 km/h) the
     # profile's error was 0.47-0.67 m for 4 s, 70 mm 8 s (one cut-off length) after the ratio fell
@@ -174,6 +180,7 @@ class Tuning:
                 check_range("nonlinear_std_factor", float(self.nonlinear_std_factor), 1.0, 10.0),
                 check_range("diagnosis_window", float(self.diagnosis_window), 0.01, 60.0),
                 check_range("diagnosis_limit", float(self.diagnosis_limit), 1.0, 1e6),
+                check_range("diagnosis_mean_limit", float(self.diagnosis_mean_limit), 1.0, 1e6),
                 check_range("diagnosis_hold", float(self.diagnosis_hold), 0.0, 100.0),
                 check_range("default_class", self.default_class, 1, 8),
                 check_range("q_class_min", self.q_class_min, 1, 8)]
