@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from .quarter_car import QuarterCar, SensorNoise
+from .quarter_car import HELD, LINEAR, QuarterCar, SensorNoise
 from .sensors import SensorErrors
 from .suspension_forces import DEFAULT_BUMP_STOPS, G, AirSpring, BumpStops, PiecewiseDamper, tyre_force
 from .vehicle import Vehicle
@@ -104,8 +104,8 @@ class NonlinearQuarterCar(QuarterCar):
 
     def __init__(self, vehicle: Vehicle, spring: AirSpring | None = None, damper: PiecewiseDamper | None = None,
                  stops: BumpStops = DEFAULT_BUMP_STOPS, noise: SensorNoise = SensorNoise(), noise_seed: int = 1,
-                 acc_sampling: int = 0, errors: SensorErrors = SensorErrors()):
-        super().__init__(vehicle, noise, noise_seed, acc_sampling, errors)
+                 acc_sampling: int = 0, errors: SensorErrors = SensorErrors(), road_input: str = HELD):
+        super().__init__(vehicle, noise, noise_seed, acc_sampling, errors, road_input)
         self.spring, self.damper, self.stops = spring, damper, stops
         self._c: tuple = ()
         self._m_s: float | None = None
@@ -137,24 +137,28 @@ class NonlinearQuarterCar(QuarterCar):
         self.dissipated = 0.0
 
     def step(self, road_height: float, h: float, m_s: float | None = None) -> None:
-        """Advance by h seconds with the road held at ``road_height`` (m); RK4 substeps."""
+        """Advance by h seconds to the road ``road_height`` (m), held over the step or reached
+        linearly from the last one (``road_input``); RK4 substeps."""
         self._set_mass(self.vehicle.m_s if m_s is None else m_s)
         c = self._c
         gap_c, gap_r, k_t, load, closed = c[11], c[12], c[14], c[17], c[18]
         n = max(1, math.ceil(h / H_MAX - 1e-9))
         dt = h / n
         r = road_height
+        r0 = self.road if self.road_input == LINEAR else r
+        dr = (r - r0) / n  # the road's move over a substep (0 held)
         z_s, v_s, z_u, v_u = x0 = self.x.tolist()
         e = self.dissipated
         contact, stop, d_max = 1, 0, 0.0
-        for _ in range(n):
-            a1, b1, p1 = _rhs(c, z_s, v_s, z_u, v_u, r)
+        for j in range(n):
+            ra, rm, rb = r0 + j * dr, r0 + (j + 0.5) * dr, r0 + (j + 1) * dr
+            a1, b1, p1 = _rhs(c, z_s, v_s, z_u, v_u, ra)
             q = 0.5 * dt
-            a2, b2, p2 = _rhs(c, z_s + q * v_s, v_s + q * a1, z_u + q * v_u, v_u + q * b1, r)
+            a2, b2, p2 = _rhs(c, z_s + q * v_s, v_s + q * a1, z_u + q * v_u, v_u + q * b1, rm)
             s2, w2 = v_s + q * a1, v_u + q * b1
-            a3, b3, p3 = _rhs(c, z_s + q * s2, v_s + q * a2, z_u + q * w2, v_u + q * b2, r)
+            a3, b3, p3 = _rhs(c, z_s + q * s2, v_s + q * a2, z_u + q * w2, v_u + q * b2, rm)
             s3, w3 = v_s + q * a2, v_u + q * b2
-            a4, b4, p4 = _rhs(c, z_s + dt * s3, v_s + dt * a3, z_u + dt * w3, v_u + dt * b3, r)
+            a4, b4, p4 = _rhs(c, z_s + dt * s3, v_s + dt * a3, z_u + dt * w3, v_u + dt * b3, rb)
             s4, w4 = v_s + dt * a3, v_u + dt * b3
             k = dt / 6.0
             z_s += k * (v_s + 2 * s2 + 2 * s3 + s4)
@@ -169,7 +173,7 @@ class NonlinearQuarterCar(QuarterCar):
                 stop = 1
             elif d < -gap_r:
                 stop = 2
-            if k_t * (r - z_u) < -load:
+            if k_t * (rb - z_u) < -load:
                 contact = 0
         if not d_max < closed:
             raise ValueError(f"at road_height = {r!r} m the suspension was compressed by {d_max:.4g} m, past "
