@@ -60,6 +60,15 @@ OBSERVERS = ("EKF (3)", "UKF (5)", "dual observer (3, 3)")
 MAPS = {"spring_model": 1, "damper_model": 1}  # the contract's default air spring and damper
 
 
+def grid_arguments(ap: argparse.ArgumentParser) -> None:
+    """The options the sensor benchmarks share: --plant, --classes, --speeds, --seeds, --duration."""
+    ap.add_argument("--plant", default="exact", choices=("exact", "nonlinear"))
+    ap.add_argument("--classes", default="C")
+    ap.add_argument("--speeds", default="40", help="km/h")
+    ap.add_argument("--seeds", type=int, default=1)
+    ap.add_argument("--duration", type=float, default=30.0, help="s (the first 10 s are not scored)")
+
+
 def drive(case: str, cls: int, speed: float, duration: float, seed: int, errors: SensorErrors = SensorErrors()):
     """(t, measurements, true road, the vehicle the estimators are told); ``errors``: the plant's
     sensor errors beside its noise (plant/sensors.py)."""
@@ -83,7 +92,7 @@ def drive(case: str, cls: int, speed: float, duration: float, seed: int, errors:
 
 def score(t, meas, zr, told, speed: float, scales: tuple = (), **kw) -> dict:
     est = SuspensionEstimator(m_s_nominal=told.m_s, m_u=told.m_u, k_s=told.k_s, k_t=told.k_t, c_s=told.c_s, **kw)
-    nf = est._force_states
+    nf = est.road.force_states
     rows = []
     for z in meas:
         o = est.step(z[0], z[1], z[2], speed, H)
@@ -95,7 +104,7 @@ def score(t, meas, zr, told, speed: float, scales: tuple = (), **kw) -> dict:
     for k in scales:
         s[f"cov x{k:g}"] = road_scores(t, out[:, 0], zr, k * out[:, 1], warmup=WARMUP, distance=d)["coverage_2sigma"]
     if scales and nf == 2:
-        n = est._noise
+        n = est.road.noise
         prior = np.sqrt([n.q_f * speed * n.tau_f / 2, n.q_b * speed * n.tau_b / 2])
         s["fe_fast"], s["fe_slow"] = np.sqrt(np.mean(out[late, 3:] ** 2, axis=0)) / prior
     return s

@@ -8,21 +8,25 @@ and its own step-size bookkeeping. Adding one touches its own module, one line o
 below, its code, name and meaning in the contract (the registry takes the codes from there), and
 the docs.
 
-Codes 0-2 of ``road_estimator`` and 0-1 of ``mass_estimator`` are the KF family that
-``SuspensionEstimator`` runs itself (gating, re-filtering after a payload change and the anchor
-of code 2 are woven into that filter's step); every other code names a ``RoadFilter`` subclass.
+Codes 0-2 of ``road_estimator`` and 0-1 of ``mass_estimator`` are the KF family, road filters
+too (kf_road.KFRoad, anchored_road.AnchoredRoad for code 2) that ``SuspensionEstimator`` makes
+itself: they gate their samples and re-initialise on their own terms, and take the mass
+feedback through ``KFRoad.feed_back_mass``, which re-filters a payload change. Every other code
+names a ``RoadFilter`` subclass.
 A mass code with a class of its own is a joint estimator: it gives the road too, and says which
 road codes it goes with (``roads``).
 """
 from __future__ import annotations
 
 import importlib
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
 from ..suspension_fmi import contract
+from .model import IZS, IZU
 
 if TYPE_CHECKING:  # pragma: no cover
     from .suspension import EstimatorConfig
@@ -47,6 +51,15 @@ class RoadFilter:
         model_builds: how many times it (re-)built its model: a test counts them.
         road_class: the ISO class (1..8) it identified itself and reports as ``road_class_est``,
             or None (the composer's class of the estimated road is reported).
+        check: its self-diagnosis (sensor_check.InnovationCheck), whose INCONSISTENT state the
+            composer reports as ``status`` 3, or None.
+        reference: (f_ref Hz, zeta_ref) of the common-mode reference its road carries, which
+            road_height_est takes off (road_profile.Profiler), or None.
+        z_shift: m added to z_s and z_u for z_s_est and z_u_est (the KF family's lag of its
+            reference), or None.
+
+    The composer calls ``checked_step``, then ``finish_step`` after its mass feedback, and reads
+    the attributes after that; the defaults below suit an estimator that only implements ``step``.
     """
 
     x: list[float]
@@ -56,6 +69,9 @@ class RoadFilter:
     h: float | None = None
     model_builds: int = 0
     road_class: int | None = None  # ISO class 1..8 the estimator itself identified (road_class_est), or None
+    check = None
+    reference: tuple[float, float] | None = None
+    z_shift: float | None = None
 
     def __init__(self, cfg: "EstimatorConfig"):
         self.cfg = cfg
@@ -68,6 +84,36 @@ class RoadFilter:
         predict only). ``speed`` m/s, finite and >= 0. ``h`` s since the previous sample, already
         snapped to ``self.h`` by the caller when it differs from it by rounding only."""
         raise NotImplementedError
+
+    def checked_step(self, z: np.ndarray, rows: np.ndarray | None, speed: float, h: float,
+                     ds: float) -> tuple[np.ndarray | None, bool]:
+        """``step``, then ``reset`` when the estimate is not finite. ``ds``: m travelled in the
+        step (0 while the car stands). Returns (the rows the update used, None for all; whether
+        the estimator re-initialised): the composer's ``status``."""
+        self.step(z, rows, speed, h)
+        if math.isfinite(sum(state_list(self.x)) + float(self.road_variance)):
+            return rows, False
+        self.reset()
+        return rows, True
+
+    def finish_step(self, h: float, ds: float) -> None:
+        """After the composer's mass feedback for this step (``set_mass``); nothing by default."""
+
+    def missing_speed(self, last: float) -> float:
+        """The speed (m/s) for a sample whose speed is not finite: ``last``, the last finite one."""
+        return last
+
+    def substitutes(self) -> tuple[float, float]:
+        """The body acceleration (m/s^2) and deflection (m) the mass regression takes for a
+        left-out sample (it feeds only its filters with them): by default none (0) and the
+        state's z_s - z_u."""
+        x = state_list(self.x)
+        return 0.0, x[IZS] - x[IZU]
+
+    def restart(self) -> None:
+        """The car moves off for the first time, having stood since the start: the estimate
+        restarts from rest (``reset`` by default)."""
+        self.reset()
 
     def set_mass(self, m_s: float) -> None:
         """The sprung mass (kg) the composer's mass estimator identified; ignored by default."""

@@ -189,6 +189,20 @@ class LinearKF:
         self.frozen = self.stationary_now = False
         self._calm = 0
 
+    def start_at(self, x: np.ndarray, P: np.ndarray | None = None) -> None:
+        """Start over from state ``x`` and, if given, covariance ``P`` (the current one else):
+        the full recursion from here (``stationary()`` goes to the fixed point instead)."""
+        self.x = x
+        if P is not None:
+            self.P = P
+        self.P_post = None
+        self.unfreeze()
+
+    def state_sum(self) -> float:
+        """The sum of x and, unless the gain is frozen (P then the fixed point), of P: not finite
+        when either holds a value that is not (a diverged filter)."""
+        return sum(self.x.tolist()) + (0.0 if self.frozen else float(self.P.sum()))
+
     def restore(self, x: np.ndarray, P: np.ndarray, stationary: bool) -> None:
         """Put back a state saved as (x, P, stationary_now) before an undone update."""
         self.x, self.P = x, P

@@ -362,6 +362,12 @@ class MassEstimator:
         var_e = sse / self._s1  # residual variance per sample
         return math.sqrt(var_e * inv_info * max(self.n_corr / h, 1.0))
 
+    def agrees_with(self, m_model: float, tol: float, sigma: float, h: float) -> tuple[float, float, bool]:
+        """(``mass_slow`` kg, its standard error kg, whether it agrees with the model mass
+        ``m_model`` kg: within max(``tol`` m_model, ``sigma`` standard errors))."""
+        m, sd = self.mass_slow, self.mass_slow_std(h)
+        return m, sd, abs(m - m_model) <= max(tol * m_model, sigma * sd)
+
     def mass_std(self, h: float) -> float:
         """Standard error (kg) of ``mass``, the forgetting-factor RLS: its covariance F times the
         innovation noise variance s_e^2 (N^2), over 1 + lambda (exponentially weighted least

@@ -587,7 +587,7 @@ def smooth_default(acc_sprung: np.ndarray, acc_unsprung: np.ndarray, susp_deflec
             veh = cfg.vehicle(m) if force else cfg.vehicle(m).with_(c_s=c)
             md = build[(key, force, hold, class_min)] = _fixed(DiscreteModel.build(
                 veh, vm, iso8608.class_psd_n0(max(cl, class_min)), h, tun.road_model,
-                est._noise if force else tun.model_noise, tun.use_deflection, int(cfg.acc_sampling), hold), R)
+                est.road.noise if force else tun.model_noise, tun.use_deflection, int(cfg.acc_sampling), hold), R)
         return md
 
     keys, key_index, index = [], {}, np.empty(K, int)
@@ -604,7 +604,7 @@ def smooth_default(acc_sprung: np.ndarray, acc_unsprung: np.ndarray, susp_deflec
     # above blend_hz the force-error filter with the road held over the step, as the plant has it,
     # and the road intensity of the class found; below it the estimator's own model
     hi_models = [model(key, True, True, 1) for key in keys]
-    lo_models = [model(key, not anchor, est._road_hold, int(tun.q_class_min)) for key in keys]
+    lo_models = [model(key, not anchor, est.road.road_hold, int(tun.q_class_min)) for key in keys]
     passes = {}
     for name, models in (("hi", hi_models), ("lo", lo_models)):
         if name == "lo" and models[0] is hi_models[0]:
@@ -630,7 +630,7 @@ def smooth_default(acc_sprung: np.ndarray, acc_unsprung: np.ndarray, susp_deflec
             # without the anchor the estimator keeps the anchor's q (its _honest_ratio is cached
             # per class and speed); the force-error filter's own, ~1.2e-2 1/s, is not a lag
             # (docs/real-roads.md)
-            ex = lo if anchor else model(key, False, est._road_hold, int(tun.q_class_min))
+            ex = lo if anchor else model(key, False, est.road.road_hold, int(tun.q_class_min))
             qk = _lag(hi if anchor else ex, ex, h, blend_hz, rm, int(cfg.acc_sampling))
             real, p = _steady(hi, lo, h, blend_hz, rm, iso8608.class_psd_n0(cl), int(cfg.acc_sampling), qk)
             r = real / p if p > 0 else np.nan

@@ -22,7 +22,7 @@ CALIBRATED = {"calibration_gain_std": 0.0, "calibration_delay_std": 0.0}
 @pytest.mark.parametrize("kmh", [40.0, 72.0])
 def test_the_lag_correction_brings_the_filter_onto_the_reference(kmh):
     """The road filter's own transfer T(f) misses HP(f) below the band by about q / s
-    (steady_state.reference_lag, the rate SuspensionEstimator._lag_rate adds back to z_s_est and
+    (steady_state.reference_lag, the rate KFRoad.lag_rate adds back to z_s_est and
     z_u_est); T (1 + q / s) is within 1 % of HP(f) (relative) from 0.005 to 0.3 Hz, and at least
     twice as close as T alone below 0.02 Hz."""
     est = SuspensionEstimator(mass_estimator=0, road_class=2)
@@ -32,7 +32,7 @@ def test_the_lag_correction_brings_the_filter_onto_the_reference(kmh):
     K, _ = kf.stationary_solution
     rm = RoadModel()
     q = reference_lag(m.Phi, m.H, K, m.h, rm.f_ref, rm.zeta_ref, DEFAULT_VEHICLE, est.acc_sampling, IZR)
-    assert q == est._lag_rate() and q > 0
+    assert q == est.road.lag_rate() and q > 0
     f = np.geomspace(0.005, 0.3, 20)
     T = road_transfer(m.Phi, m.H, K, m.h, f, DEFAULT_VEHICLE, est.acc_sampling, IZR)
     hp = reference_highpass(f, rm.f_ref, rm.zeta_ref)

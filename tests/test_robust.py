@@ -142,11 +142,11 @@ def test_default_on_the_air_spring_plant_told_only_its_linearisation():
     assert new["err_std_hp_pct"] < 5.0 and old["err_std_hp_pct"] > 3 * new["err_std_hp_pct"], (new, old)
     assert 0.9 < new["gain_hp"] < 1.1
     # the low frequencies: the restarting anchor no longer pulls the force-error filter's common
-    # velocity (suspension.ALIGN_QUIET); road seeds 1-4: raw rms against the profile 0.41 / 0.53 /
+    # velocity (anchored_road.ALIGN_QUIET); road seeds 1-4: raw rms against the profile 0.41 / 0.53 /
     # 0.32 / 0.50 mm, 2-sigma coverage 1.0 (with the pull, against the former time-domain
     # reference: 38 / 264 / 24 mm on seeds 1-3)
     assert new["rmse_raw_mm"] < 2.0 and new["coverage_2sigma"] > 0.9, new
-    # the start, before the anchor is dropped (2.4 s here: suspension.START_DISAGREE_SPAN): the
+    # the start, before the anchor is dropped (2.4 s here: anchored_road.START_DISAGREE_SPAN): the
     # output is the force-error filter without the pull while the two disagree (the anchor's
     # road was 0.1-0.56 m off in the first 2.4 s when the output was the anchor's). Seeds 1-4:
     # rms error 0.33-0.64 mm over the first 4 s, at most 2.3 mm; road_height_std there carries the
@@ -186,7 +186,7 @@ def test_the_std_once_the_anchor_is_dropped_is_the_force_error_filters_times_the
     np.testing.assert_allclose(runs[1.2][late, 1], 1.2 * runs[1.0][late, 1], rtol=1e-12)
     np.testing.assert_allclose(runs[3.0][late, 1], 3.0 * runs[1.0][late, 1], rtol=1e-12)
     # the force-error filter's P (the same in every run) scaled to the band of road_height_est
-    assert runs[1.0][-1, 1] == pytest.approx(np.sqrt(est.kf.P[4, 4] * est._band_ratio()), rel=1e-12)
+    assert runs[1.0][-1, 1] == pytest.approx(np.sqrt(est.kf.P[4, 4] * est.road.band_ratio()), rel=1e-12)
 
     t, meas, zr = drive(NOMINAL, T=6.0)
     _, std1, _ = estimate(meas, nonlinear_std_factor=1.0)
@@ -368,7 +368,7 @@ def test_a_grade_from_the_start_with_the_damper_off(factors, seed):
     force-error filter's state then (12 times) left it 85 mm off: raw error 48.6 mm rms,
     2-sigma coverage 0 (c_s -30 %, seed 1, against the former time-domain reference), against
     4.3 mm on the exact vehicle. Within the start the anchor is not restarted
-    (suspension.START_DISAGREE_SPAN). Against the profile after 10 s, noise seeds 1-4: raw error
+    (anchored_road.START_DISAGREE_SPAN). Against the profile after 10 s, noise seeds 1-4: raw error
     0.17-0.21 mm (c_s -30 %), 0.12-0.30 mm (c_s +30 %, seeds 1-3), 0.10-0.14 mm (exact, seeds
     1-2); coverage 0.96-1.0."""
     plant = NOMINAL.with_(**{k: getattr(NOMINAL, k) * f for k, f in factors.items()})

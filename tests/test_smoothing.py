@@ -120,7 +120,7 @@ def test_smoothing_fmu_outputs_is_the_kalman_filters_own_rts_smoother():
         # z_s_est and z_u_est carry the correction of the filter's lag behind its reference (a
         # common shift, steady_state.reference_lag): taken off, the outputs are the filter's own
         # states (tire_deflection_est, a difference, does not carry it)
-        row = [o[k] - (est._x_int if k in ("z_s_est", "z_u_est") else 0.0) for k in FMU_STATES]
+        row = [o[k] - (est.road.z_shift if k in ("z_s_est", "z_u_est") else 0.0) for k in FMU_STATES]
         outs.append(row)
         xs.append(est.kf.x.copy())
         Ps.append(est.kf.P.copy())
