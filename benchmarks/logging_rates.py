@@ -25,6 +25,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import robust_cores  # noqa: E402
 
 from suspension_estimation.estimators import SuspensionEstimator  # noqa: E402
 from suspension_estimation.harness.metrics import road_scores  # noqa: E402
@@ -88,11 +91,7 @@ def score(t, meas, zr, told, speed: float, h: float, acc_sampling: int, **kw) ->
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--plant", default="exact", choices=("exact", "nonlinear"))
-    ap.add_argument("--classes", default="C")
-    ap.add_argument("--speeds", default="40", help="km/h")
-    ap.add_argument("--seeds", type=int, default=1)
-    ap.add_argument("--duration", type=float, default=30.0, help="s (the first 10 s are not scored)")
+    robust_cores.grid_arguments(ap)
     ap.add_argument("--steps", default="1,2,5,10", help="logging steps, ms (multiples of 0.5; 1 first)")
     ap.add_argument("--set", default="{}", help='extra estimator keywords as JSON, e.g. \'{"mass_feedback": false}\'')
     a = ap.parse_args(argv)

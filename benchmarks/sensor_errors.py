@@ -78,11 +78,7 @@ def run(t, meas, zr, told, speed: float, **kw) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--plant", default="exact", choices=("exact", "nonlinear"))
-    ap.add_argument("--classes", default="C")
-    ap.add_argument("--speeds", default="40", help="km/h")
-    ap.add_argument("--seeds", type=int, default=1)
-    ap.add_argument("--duration", type=float, default=30.0, help="s (the first 10 s are not scored)")
+    robust_cores.grid_arguments(ap)
     ap.add_argument("--estimators", default=";".join(ESTIMATORS))
     ap.add_argument("--cases", default=",".join(CASES))
     ap.add_argument("--debias", action="store_true", help="remove the accelerations' running mean first")

@@ -98,12 +98,8 @@ def run(t, meas, zr, told, speed: float, fault: tuple | None) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--plant", default="exact", choices=("exact", "nonlinear"))
-    ap.add_argument("--classes", default="C")
-    ap.add_argument("--speeds", default="40", help="km/h")
-    ap.add_argument("--seeds", type=int, default=1)
+    robust_cores.grid_arguments(ap)
     ap.add_argument("--seed0", type=int, default=1, help="first seed (default 1)")
-    ap.add_argument("--duration", type=float, default=30.0, help="s (the first 10 s are not scored)")
     ap.add_argument("--cases", default=",".join(CASES))
     a = ap.parse_args(argv)
     cases = [c.strip() for c in a.cases.split(",")]
