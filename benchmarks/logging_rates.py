@@ -5,7 +5,7 @@ which is the estimator's own model of the averaged sensors (``road_hold``) and h
 other figures are measured. docs/real-sensors.md quotes it.
 
     .venv/bin/python benchmarks/logging_rates.py [--plant exact|nonlinear] [--classes C] [--speeds 40]
-        [--seeds 1] [--duration 30] [--steps 1,2,5,10] [--set '{"mass_feedback": false}']
+        [--seeds 1] [--duration 30] [--steps 1,2,5,10] [--set '{"mass_feedback": false}'] [--steady]
 
 The logger reads the accelerations at the sample (point, acc_sampling 0) or their mean over the
 sample, (v[k] - v[k-1]) / h (averaged, acc_sampling 1), and the deflection at the sample, with the
@@ -14,6 +14,11 @@ warm-up (harness.metrics.road_scores): HP error %, its ratio to the same samplin
 same plant, the +-2 road_height_std coverage of the profile's error, the mean sprung-mass error %.
 The estimator is told the exact vehicle (the linearisation for the air-spring plant) and the
 sampling; everything else at its defaults or ``--set``.
+
+``--steady``: instead, the steady-state KF of the exact model (road_estimator 0's filter, Q of
+class max(class, q_class_min), no simulation: estimators.steady_state.analyse) on either plant,
+for each sampling and road model (``road_hold``): the HP error %, and its parts from the road
+(the filter's transfer) and from the sensor noise.
 """
 from __future__ import annotations
 
@@ -30,6 +35,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import robust_cores  # noqa: E402
 
 from suspension_estimation.estimators import SuspensionEstimator  # noqa: E402
+from suspension_estimation.estimators.model import DiscreteModel, measurement_covariance  # noqa: E402
+from suspension_estimation.estimators.steady_state import analyse, steady_gain  # noqa: E402
+from suspension_estimation.estimators.tuning import TUNING  # noqa: E402
 from suspension_estimation.harness.metrics import road_scores  # noqa: E402
 from suspension_estimation.plant import iso8608  # noqa: E402
 from suspension_estimation.plant.nonlinear_car import NonlinearQuarterCar  # noqa: E402
@@ -89,11 +97,31 @@ def score(t, meas, zr, told, speed: float, h: float, acc_sampling: int, **kw) ->
     return s
 
 
+def steady(cls: int, speed: float, steps: list[float]) -> None:
+    """The --steady table (module doc)."""
+    noise = SensorNoise()
+    R = measurement_covariance(noise.acc_sprung, noise.acc_unsprung, noise.deflection)
+    gd_q = iso8608.class_psd_n0(max(cls, TUNING.q_class_min))
+    print("| road in the plant | sampling | road held in the model | step | HP % | from the road | from the noise |")
+    print("|---|---|---|---|---|---|---|")
+    for road_input in (LINEAR, HELD):
+        for acc, hold in ((0, False), (1, True), (1, False)):
+            for h in steps:
+                m = DiscreteModel.build(DEFAULT_VEHICLE, speed, gd_q, h, TUNING.road_model, acc_sampling=acc,
+                                        road_hold=hold)
+                K, _ = steady_gain(m, R)
+                r = analyse(m.Phi, m.H, K, R, h, iso8608.class_psd_n0(cls), speed,
+                            f=np.geomspace(1e-3, 0.499 / h, 3000), acc_sampling=acc, road_input=road_input)
+                print(f"| {road_input} | {'averaged' if acc else 'point'} | {'yes' if hold else 'no'} | {1e3 * h:g} ms | "
+                      f"{r['hp_pct']:.2f} | {r['hp_signal_pct']:.2f} | {r['hp_noise_pct']:.2f} |", flush=True)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     robust_cores.grid_arguments(ap)
     ap.add_argument("--steps", default="1,2,5,10", help="logging steps, ms (multiples of 0.5; 1 first)")
     ap.add_argument("--set", default="{}", help='extra estimator keywords as JSON, e.g. \'{"mass_feedback": false}\'')
+    ap.add_argument("--steady", action="store_true", help="the steady-state KF instead of simulations")
     a = ap.parse_args(argv)
     try:
         extra = json.loads(a.set)
@@ -105,6 +133,12 @@ def main(argv: list[str] | None = None) -> int:
         print("error: --set takes a JSON object, --steps positive multiples of 0.5 ms, --duration > 10 s, "
               "--seeds >= 1", file=sys.stderr)
         return 1
+    if a.steady:
+        for letter in a.classes.split(","):
+            for kmh in (float(v) for v in a.speeds.split(",")):
+                print(f"ISO {letter.upper()}, {kmh:g} km/h, exact linear vehicle\n")
+                steady("ABCDEFGH".index(letter.strip().upper()) + 1, kmh / 3.6, steps)
+        return 0
     print(f"plant {a.plant}; one row per (class, speed, plant, sampling, step), means over {a.seeds} seed(s)\n")
     print("| ISO | km/h | simulated | sampling | logged | HP % | x first step | cov | mass % |")
     print("|---|---|---|---|---|---|---|---|---|")

@@ -19,8 +19,8 @@ import numpy as np
 
 from ..plant import iso8608
 from ..plant.profile_band import band_response
+from ..plant.quarter_car import HELD, LINEAR, discretise_linear_input, state_matrices
 from ..plant.quarter_car import discretise as plant_discretise
-from ..plant.quarter_car import state_matrices
 from ..plant.vehicle import DEFAULT_VEHICLE, Vehicle
 
 HP_CUTOFF, HP_ORDER = 0.5, 4  # as harness.metrics (not imported: estimators/ ships in the FMU)
@@ -46,16 +46,24 @@ def iso_psd_time(f, gd_n0, speed, n_min=iso8608.N_MIN, n_max=iso8608.N_MAX):
     return np.where((n >= n_min) & (n <= n_max), S, 0.0)
 
 
-def plant_transfer(vehicle: Vehicle, h: float, zinv: np.ndarray, acc_sampling: int = 0) -> np.ndarray:
+def plant_transfer(vehicle: Vehicle, h: float, zinv: np.ndarray, acc_sampling: int = 0,
+                   road_input: str = HELD) -> np.ndarray:
     """(nf, 3) road -> [a_s, a_u, z_s - z_u] of plant.QuarterCar, z^-1 given (dimensionless
-    per m of road: 1/s^2, 1/s^2, 1). The road r_k is held over the step that ends at t_k.
+    per m of road: 1/s^2, 1/s^2, 1). ``road_input`` HELD: the road r_k is held over the step that
+    ends at t_k; LINEAR: it moves from r_k-1 to r_k over that step, x_k = Ad x_k-1 +
+    (Bd - G1) r_k-1 + G1 r_k (a road that is not held, sampled at the steps).
     ``acc_sampling`` 0: accelerations at the end of the step, C x_k + D r_k; 1: averaged over
     the step, (v_k - v_{k-1}) / h = (1 - z^-1) / h v_k (plant.QuarterCar.step)."""
     A4, B4 = state_matrices(vehicle)
     Ad, Bd = plant_discretise(A4, B4, h)
     zi = np.asarray(zinv)[:, None, None]
-    # x_k = (I - Ad z^-1)^-1 Bd r_k, all frequencies in one batched solve
-    X = np.linalg.solve(np.eye(4) - Ad * zi, np.broadcast_to(Bd[:, None], (len(zi), 4, 1)))[..., 0]
+    if road_input == LINEAR:
+        G1 = discretise_linear_input(A4, B4, h)
+        rhs = (Bd - G1)[None, :, None] * zi + G1[None, :, None]
+    else:
+        rhs = np.broadcast_to(Bd[:, None], (len(zi), 4, 1))
+    # x_k = (I - Ad z^-1)^-1 (input terms) r_k, all frequencies in one batched solve
+    X = np.linalg.solve(np.eye(4) - Ad * zi, rhs)[..., 0]
     if acc_sampling == 1:
         d = (1 - zi[:, 0, 0]) / h
         return np.stack([d * X[:, 1], d * X[:, 3], X[:, 0] - X[:, 2]], axis=1)
@@ -212,11 +220,12 @@ def band_error_variance(Phi, H, K, R, h: float, gd_n0: float, speed: float, cuto
 
 
 def analyse(Phi, H, K, R_true, h, gd_n0, speed, vehicle=DEFAULT_VEHICLE, road_row=None,
-            f=None, n_min=iso8608.N_MIN, acc_sampling=0):
+            f=None, n_min=iso8608.N_MIN, acc_sampling=0, road_input=HELD):
     """Spectral scores of the steady-state filter (K) on an ISO road: dict + spectra.
 
-    ``acc_sampling`` says how the PLANT samples its accelerations (0 end of step, 1 averaged);
-    the filter (Phi, H, K) may assume either. The plant adds white noise of R_true to the
+    ``acc_sampling`` says how the PLANT samples its accelerations (0 end of step, 1 averaged),
+    ``road_input`` how its road moves over a step (``plant_transfer``); the filter (Phi, H, K)
+    may assume either. The plant adds white noise of R_true to the
     sampled or averaged value alike (plant.QuarterCar). Keys: raw_pct, hp_pct, gain_hp,
     err_var_raw (m^2), hp_signal_pct / hp_noise_pct (the HP error from the road, |T - 1|, and
     from the sensor noise alone), and the spectra."""
@@ -226,7 +235,7 @@ def analyse(Phi, H, K, R_true, h, gd_n0, speed, vehicle=DEFAULT_VEHICLE, road_ro
     if road_row is None:
         road_row = np.zeros(Phi.shape[0])
         road_row[4] = 1.0
-    G = plant_transfer(vehicle, h, zinv, acc_sampling)
+    G = plant_transfer(vehicle, h, zinv, acc_sampling, road_input)
     F = filter_transfer(Phi, H, K, zinv, np.atleast_2d(road_row))[:, 0, :]
     T = np.einsum("fi,fi->f", F, G)
     Sr = iso_psd_time(f, gd_n0, speed, n_min=n_min)

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from suspension_estimation.estimators.steady_state import plant_transfer
 from suspension_estimation.plant.nonlinear_car import NonlinearQuarterCar
 from suspension_estimation.plant.quarter_car import HELD, LINEAR, QuarterCar, SensorNoise, state_matrices
 from suspension_estimation.plant.vehicle import DEFAULT_VEHICLE as V
@@ -61,3 +62,27 @@ def test_a_held_road_biases_the_point_sampled_wheel_acceleration_on_a_grade(plan
 def test_an_unknown_road_input_is_refused():
     with pytest.raises(ValueError, match="road_input"):
         QuarterCar(V, road_input="cubic")
+
+
+@pytest.mark.parametrize("road_input", [HELD, LINEAR])
+@pytest.mark.parametrize("acc_sampling", [0, 1])
+def test_steady_state_plant_transfer_is_the_plants_response_to_a_sampled_sinusoid(road_input, acc_sampling):
+    """estimators.steady_state.plant_transfer, which the steady-state scores and road_height_std's
+    band ratio use, against the plant driven with r_k = cos(w t_k) at 10 ms (amplitude and phase of
+    each channel, fitted by least squares once the start's transient has died out)."""
+    h = 0.01
+    for f in (1.3, 11.0, 31.0):
+        w = 2 * np.pi * f
+        car = QuarterCar(V, QUIET, acc_sampling=acc_sampling, road_input=road_input)
+        car.settle(0.0)
+        t = np.arange(1, 1501) * h
+        y = np.empty((t.size, 3))
+        for k, tk in enumerate(t):
+            car.step(np.cos(w * tk), h)
+            y[k] = car.measured
+        late = t > 10.0
+        basis = np.column_stack([np.cos(w * t[late]), np.sin(w * t[late])])
+        coef = np.linalg.lstsq(basis, y[late], rcond=None)[0]  # y = Re(G e^{i w t}) = Re G cos - Im G sin
+        got = coef[0] - 1j * coef[1]
+        G = plant_transfer(V, h, np.array([np.exp(-1j * w * h)]), acc_sampling, road_input)[0]
+        np.testing.assert_allclose(got, G, rtol=1e-6, atol=1e-9 * np.max(np.abs(G)))
