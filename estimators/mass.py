@@ -11,7 +11,13 @@ measured body acceleration a_s and the measured deflection d = z_s - z_u. The ve
 never formed by differencing: a and d both pass through the SAME linear "state-variable"
 filter F(s) = s/(s + w_h) * w_c^2/(s^2 + 2 zeta w_c s + w_c^2), whose second-order part yields
 F[d] and F[d'] = s F[d] exactly as two of its states. Because F is linear and common to all
-terms, m_s F[a_s] + c F[d'] = -k_s F[d] holds exactly for the filtered signals. The high-pass
+terms, m_s F[a_s] + c F[d'] = -k_s F[d] holds exactly for the filtered signals. The samples
+are taken to move linearly from one to the next (a first-order hold: ``StateVariableFilter``),
+as the continuous signals they sample do: held over the step instead, as a zero-order hold
+takes them, F[d'] is the filtered rate of a staircase, whose jumps fall half a step after the
+rate they stand for, and the damping term's lag read as mass (point samples at 10 ms of a car
+simulated at 0.5 ms, ISO C, 40 km/h: since-change mass +0.94 %, damping +4.5 %; with the linear
+hold -0.07 %, -0.05 %). The high-pass
 (w_h) removes sensor offsets and drift, the low-pass (w_c) the white sensor noise (which
 would otherwise bias least squares through errors in the regressor).
 
@@ -81,6 +87,8 @@ import math
 import numpy as np
 from scipy.linalg import expm
 
+from ..plant.quarter_car import discretise_linear_input
+
 # The product F[a_s] e of regressor and residual decorrelates faster than the residual alone
 # (n_corr): the regressor is narrow-band at the body resonance. The factor is measured, not
 # derived: with n_corr / h alone the standard error was 1.7-1.9 times the rms error of the fast
@@ -130,8 +138,19 @@ def _svf_step(r0, r1, r2, bd, x, u):
             r2[0] * x0 + r2[1] * x1 + r2[2] * x2 + bd[2] * u)
 
 
+def _svf_step_linear(r0, r1, r2, b0, b1, x, u0, u):
+    """x <- Ad x + B0 u0 + B1 u for the 3-state filter whose input moves linearly from u0 to u
+    over the step (``StateVariableFilter.discretise_linear``), Ad given by its rows."""
+    x0, x1, x2 = x
+    return (r0[0] * x0 + r0[1] * x1 + r0[2] * x2 + b0[0] * u0 + b1[0] * u,
+            r1[0] * x0 + r1[1] * x1 + r1[2] * x2 + b0[1] * u0 + b1[1] * u,
+            r2[0] * x0 + r2[1] * x1 + r2[2] * x2 + b0[2] * u0 + b1[2] * u)
+
+
 class StateVariableFilter:
-    """Discrete exact (ZOH) realisation of F(s) above for one scalar signal.
+    """Discrete exact realisation of F(s) above for one scalar signal: ``discretise`` with the
+    input held over the step (ZOH), ``discretise_linear`` with the input moving linearly from
+    one sample to the next (first-order hold).
 
     States [hp_state, x1, x2]: output F[u] = x1 and s F[u] = x2 (units of u and u/s).
     """
@@ -155,6 +174,13 @@ class StateVariableFilter:
             E = expm(M * h)
             self.Ad, self.Bd, self._h = np.ascontiguousarray(E[:3, :3]), np.ascontiguousarray(E[:3, 3]), h
         return self.Ad, self.Bd
+
+    def discretise_linear(self, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(Ad, B0, B1): x[k] = Ad x[k-1] + B0 u[k-1] + B1 u[k] for an input moving linearly from
+        u[k-1] to u[k] over the step (B0 + B1 = Bd of ``discretise``)."""
+        Ad, Bd = self.discretise(h)
+        B1 = discretise_linear_input(self.A, self.B, h)
+        return Ad, np.ascontiguousarray(Bd - B1), B1
 
 
 class ForgettingRLS:
@@ -233,6 +259,8 @@ class MassEstimator:
         self.xe = [(0.0, 0.0, 0.0)] * len(TERMS)  # F states on each extra term (estimate_damping)
         self._svf_h = None
         self._svf_ad = self._svf_bd = self._rate_ad = self._rate_bd = None  # at step _svf_h
+        self._svf_b = self._rate_b = None  # (B0, B1) of the linear input, at step _svf_h
+        self._u_last: tuple | None = None  # the last sample's a_s (m/s^2) and d (m)
         # Initial covariance: a +-100 % prior on m (and c) at unit regressor scale; the
         # regressor's own size (F[a_s]^2 ~ 0.1..10) makes this prior weak within ~0.1 s.
         theta0, F0 = [m_nominal], np.diag([m_nominal ** 2])
@@ -406,25 +434,31 @@ class MassEstimator:
         regression is not updated for it nor for ``guard`` s after it (the filters' memory of
         the substitution, a few low-pass time constants)."""
         if h != self._svf_h:  # the filter matrices as plain floats (3 x 3 in scalar arithmetic)
-            Ad, Bd = self.svf.discretise(h)
-            self._svf_ad, self._svf_bd, self._svf_h = tuple(Ad.tolist()), tuple(Bd.tolist()), h
+            Ad, B0, B1 = self.svf.discretise_linear(h)
+            self._svf_ad, self._svf_bd, self._svf_h = tuple(Ad.tolist()), tuple((B0 + B1).tolist()), h
+            self._svf_b = (tuple(B0.tolist()), tuple(B1.tolist()))
             corner = min(RATE_LP, RATE_LP_PER_RATE / h)
             if abs(self.svf_rate.wc - 2 * math.pi * corner) > 1e-9 * self.svf_rate.wc:
                 self.svf_rate = StateVariableFilter(self.svf.wh / (2 * math.pi), corner)
-            Ad, Bd = self.svf_rate.discretise(h)
-            self._rate_ad, self._rate_bd = tuple(Ad.tolist()), tuple(Bd.tolist())
+            Ad, B0, B1 = self.svf_rate.discretise_linear(h)
+            self._rate_ad, self._rate_bd = tuple(Ad.tolist()), tuple((B0 + B1).tolist())
+            self._rate_b = (tuple(B0.tolist()), tuple(B1.tolist()))
             self._noise_fa, self._noise_fdd = self._noise_variances(h)
             self._solve_every = max(1, int(round(SLOW_SOLVE_INTERVAL / h)))
-        (r0, r1, r2), bd = self._svf_ad, self._svf_bd
-        self.xa = _svf_step(r0, r1, r2, bd, self.xa, acc_sprung)
-        self.xd = _svf_step(r0, r1, r2, bd, self.xd, deflection)
+        (r0, r1, r2), (b0, b1) = self._svf_ad, self._svf_b
+        last = self._u_last or (acc_sprung, deflection)  # the first sample: held
+        self.xa = _svf_step_linear(r0, r1, r2, b0, b1, self.xa, last[0], acc_sprung)
+        self.xd = _svf_step_linear(r0, r1, r2, b0, b1, self.xd, last[1], deflection)
         if self.estimate_damping:
-            self.xr = _svf_step(*self._rate_ad, self._rate_bd, self.xr, deflection)
+            self.xr = _svf_step_linear(*self._rate_ad, *self._rate_b, self.xr, last[1], deflection)
+            # the TERMS held over the step, as RATE_LP was chosen with: fed linearly the air-spring
+            # car's mass came out 2.6-4.8 % lower at 10 ms (road seeds 1-3, ISO C, 40 km/h)
             u = _terms(self.xr[2], deflection)
-            self.xe = [_svf_step(r0, r1, r2, bd, x, ui) for x, ui in zip(self.xe, u)]
+            self.xe = [_svf_step(r0, r1, r2, self._svf_bd, x, ui) for x, ui in zip(self.xe, u)]
+        self._u_last = (acc_sprung, deflection)
         if self._S is not None:
             self._S_left -= h
-            self._S = _svf_step(r0, r1, r2, bd, self._S, 1.0) if self._S_left > 0.0 else None
+            self._S = _svf_step(r0, r1, r2, self._svf_bd, self._S, 1.0) if self._S_left > 0.0 else None
         self.samples += 1
         if not use:
             self._guard = self.guard
@@ -480,11 +514,14 @@ class MassEstimator:
     def _noise_variances(self, h: float) -> tuple[float, float]:
         """Stationary variance of F[a_s] ((m/s^2)^2) and of F[d'] ((m/s)^2) when the sensors
         give nothing but their white noise (std per sample ``acc_noise_std``, ``defl_noise_std``,
-        held over the step as the filter's ZOH assumes)."""
+        moving linearly between the samples as the filters take them)."""
         from scipy.linalg import solve_discrete_lyapunov
 
-        Ad, Bd = self.svf.discretise(h)
-        P = solve_discrete_lyapunov(Ad, np.outer(Bd, Bd))
+        # x[k] = Ad x[k-1] + B0 e[k-1] + B1 e[k], e white: w = x - B1 e follows
+        # w[k] = Ad w[k-1] + (Ad B1 + B0) e[k-1], and P = P_w + B1 B1'
+        Ad, B0, B1 = self.svf.discretise_linear(h)
+        g = Ad @ B1 + B0
+        P = solve_discrete_lyapunov(Ad, np.outer(g, g)) + np.outer(B1, B1)
         return self.acc_noise_std ** 2 * float(P[1, 1]), self.defl_noise_std ** 2 * float(P[2, 2])
 
     def _regression(self) -> tuple[float, np.ndarray | None, float]:
