@@ -141,12 +141,7 @@ def test_default_at_200_and_100_hz_with_averaged_accelerations(plant):
         assert hp[5e-3] < 3.0 * hp[1e-3] and hp[1e-2] < 6.5 * hp[1e-3], hp
 
 
-def test_point_samples_of_a_road_that_is_not_held_at_200_and_100_hz():
-    """Issue targets on a car simulated at 0.5 ms with the road moving linearly (plant LINEAR) and
-    logged at 1, 5 and 10 ms as point samples (benchmarks/logging_rates.py, seed 1, ISO C, 40 km/h),
-    the default estimator: the HP road error at 200 / 100 Hz within 1.3x / 1.5x of that at 1 kHz
-    (measured 1.15x / 1.20x) and the mass within 0.5 % at each rate (at most 0.06 % measured; +0.94 %
-    at 10 ms with the mass regression's filters holding their inputs over the step)."""
+def _logging_rates():
     import importlib.util
 
     from conftest import ROOT
@@ -154,6 +149,16 @@ def test_point_samples_of_a_road_that_is_not_held_at_200_and_100_hz():
     spec = importlib.util.spec_from_file_location("logging_rates_for_test", ROOT / "benchmarks" / "logging_rates.py")
     rates = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(rates)
+    return rates
+
+
+def test_point_samples_of_a_road_that_is_not_held_at_200_and_100_hz():
+    """Issue targets on a car simulated at 0.5 ms with the road moving linearly (plant LINEAR) and
+    logged at 1, 5 and 10 ms as point samples (benchmarks/logging_rates.py, seed 1, ISO C, 40 km/h),
+    the default estimator: the HP road error at 200 / 100 Hz within 1.3x / 1.5x of that at 1 kHz
+    (measured 1.15x / 1.20x) and the mass within 0.5 % at each rate (at most 0.06 % measured; +0.94 %
+    at 10 ms with the mass regression's filters holding their inputs over the step)."""
+    rates = _logging_rates()
     hp, mass = {}, {}
     for h in (1e-3, 5e-3, 1e-2):
         t, meas, zr, told = rates.log("exact", True, 3, SPEED, 24.0, 1, h, 0)
@@ -161,3 +166,4 @@ def test_point_samples_of_a_road_that_is_not_held_at_200_and_100_hz():
         hp[h], mass[h] = s["err_std_hp_pct"], s["mass_pct"]
     assert hp[5e-3] < 1.3 * hp[1e-3] and hp[1e-2] < 1.5 * hp[1e-3], hp
     assert max(abs(m) for m in mass.values()) < 0.5, mass
+
