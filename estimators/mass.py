@@ -130,17 +130,13 @@ def _terms(v: float, d: float) -> tuple[float, float, float]:
     return abs(v), v * abs(v), d * d
 
 
-def _svf_step(r0, r1, r2, bd, x, u):
-    """x <- Ad x + Bd u for the 3-state filter, Ad given by its rows (plain floats)."""
-    x0, x1, x2 = x
-    return (r0[0] * x0 + r0[1] * x1 + r0[2] * x2 + bd[0] * u,
-            r1[0] * x0 + r1[1] * x1 + r1[2] * x2 + bd[1] * u,
-            r2[0] * x0 + r2[1] * x1 + r2[2] * x2 + bd[2] * u)
+HELD_INPUT = (0.0, 0.0, 0.0)  # B0 of an input held over the step (B1 = Bd)
 
 
-def _svf_step_linear(r0, r1, r2, b0, b1, x, u0, u):
+def _svf_step(r0, r1, r2, b0, b1, x, u0, u):
     """x <- Ad x + B0 u0 + B1 u for the 3-state filter whose input moves linearly from u0 to u
-    over the step (``StateVariableFilter.discretise_linear``), Ad given by its rows."""
+    over the step (``StateVariableFilter.discretise_linear``; held: B0 = HELD_INPUT, B1 = Bd),
+    Ad given by its rows (plain floats)."""
     x0, x1, x2 = x
     return (r0[0] * x0 + r0[1] * x1 + r0[2] * x2 + b0[0] * u0 + b1[0] * u,
             r1[0] * x0 + r1[1] * x1 + r1[2] * x2 + b0[1] * u0 + b1[1] * u,
@@ -258,7 +254,7 @@ class MassEstimator:
         self.xr = (0.0, 0.0, 0.0)  # states of the rate filter on d: x2 = d' (m/s), band-limited
         self.xe = [(0.0, 0.0, 0.0)] * len(TERMS)  # F states on each extra term (estimate_damping)
         self._svf_h = None
-        self._svf_ad = self._svf_bd = self._rate_ad = self._rate_bd = None  # at step _svf_h
+        self._svf_ad = self._svf_bd = self._rate_ad = None  # at step _svf_h
         self._svf_b = self._rate_b = None  # (B0, B1) of the linear input, at step _svf_h
         self._u_last: tuple | None = None  # the last sample's a_s (m/s^2) and d (m)
         # Initial covariance: a +-100 % prior on m (and c) at unit regressor scale; the
@@ -441,24 +437,24 @@ class MassEstimator:
             if abs(self.svf_rate.wc - 2 * math.pi * corner) > 1e-9 * self.svf_rate.wc:
                 self.svf_rate = StateVariableFilter(self.svf.wh / (2 * math.pi), corner)
             Ad, B0, B1 = self.svf_rate.discretise_linear(h)
-            self._rate_ad, self._rate_bd = tuple(Ad.tolist()), tuple((B0 + B1).tolist())
+            self._rate_ad = tuple(Ad.tolist())
             self._rate_b = (tuple(B0.tolist()), tuple(B1.tolist()))
             self._noise_fa, self._noise_fdd = self._noise_variances(h)
             self._solve_every = max(1, int(round(SLOW_SOLVE_INTERVAL / h)))
         (r0, r1, r2), (b0, b1) = self._svf_ad, self._svf_b
         last = self._u_last or (acc_sprung, deflection)  # the first sample: held
-        self.xa = _svf_step_linear(r0, r1, r2, b0, b1, self.xa, last[0], acc_sprung)
-        self.xd = _svf_step_linear(r0, r1, r2, b0, b1, self.xd, last[1], deflection)
+        self.xa = _svf_step(r0, r1, r2, b0, b1, self.xa, last[0], acc_sprung)
+        self.xd = _svf_step(r0, r1, r2, b0, b1, self.xd, last[1], deflection)
         if self.estimate_damping:
-            self.xr = _svf_step_linear(*self._rate_ad, *self._rate_b, self.xr, last[1], deflection)
+            self.xr = _svf_step(*self._rate_ad, *self._rate_b, self.xr, last[1], deflection)
             # the TERMS held over the step, as RATE_LP was chosen with: fed linearly the air-spring
             # car's mass came out 2.6-4.8 % lower at 10 ms (road seeds 1-3, ISO C, 40 km/h)
             u = _terms(self.xr[2], deflection)
-            self.xe = [_svf_step(r0, r1, r2, self._svf_bd, x, ui) for x, ui in zip(self.xe, u)]
+            self.xe = [_svf_step(r0, r1, r2, HELD_INPUT, self._svf_bd, x, 0.0, ui) for x, ui in zip(self.xe, u)]
         self._u_last = (acc_sprung, deflection)
         if self._S is not None:
             self._S_left -= h
-            self._S = _svf_step(r0, r1, r2, self._svf_bd, self._S, 1.0) if self._S_left > 0.0 else None
+            self._S = _svf_step(r0, r1, r2, HELD_INPUT, self._svf_bd, self._S, 0.0, 1.0) if self._S_left > 0.0 else None
         self.samples += 1
         if not use:
             self._guard = self.guard

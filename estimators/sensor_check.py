@@ -79,10 +79,11 @@ class InnovationCheck:
         self.state = CONSISTENT
         self._num = np.zeros(self.dim_z)
         self._den = np.zeros(self.dim_z)
-        self._mean = np.zeros(self.dim_z)  # <y_i>
-        self._s = np.zeros(self.dim_z)  # <S_ii>
-        self._dy_mean = None  # <G_ij e_j>, one column per error source
-        self._h = math.nan  # s, the last step
+        m = self.mean_channels.size
+        self._mean = np.zeros(m)  # <y_i> on the mean channels
+        self._s = np.zeros(m)  # <S_ii>
+        self._dy_mean = np.zeros((m, self.dim_z + self.n_acc))  # <G_ij e_j>, one column per error source
+        self._a = 0.0  # the averages' weight h / window at the last update (0: none yet)
         self._dx = None  # the error responses, one column per error source
         self._last = None  # the previous prediction H x_k|k-1
         self._age = 0.0  # s averaged so far
@@ -96,12 +97,9 @@ class InnovationCheck:
     @property
     def mean_ratio(self) -> np.ndarray:
         """|m_i| / u_i on each channel of ``mean_channels`` (0 before the first update)."""
-        if self._dy_mean is None or not self.mean_channels.size:
-            return np.zeros(self.mean_channels.size)
-        i = self.mean_channels
-        a = min(1.0, self._h / self.window)
-        var = self._s[i] * a / (2.0 - a) + (self._dy_mean[i] ** 2) @ self._weights
-        return np.divide(np.abs(self._mean[i]), np.sqrt(var), out=np.zeros(i.size), where=var > 0)
+        a = self._a
+        var = self._s * a / (2.0 - a) + (self._dy_mean ** 2) @ self._weights
+        return np.divide(np.abs(self._mean), np.sqrt(var), out=np.zeros(self._mean.size), where=var > 0)
 
     def update(self, y: np.ndarray, S: np.ndarray, prediction: np.ndarray, F: np.ndarray, K: np.ndarray,
                H: np.ndarray, h: float, ds: float) -> str:
@@ -123,12 +121,11 @@ class InnovationCheck:
         self._num += a * (np.minimum(y * y, CLIP * expected) - self._num)
         self._den += a * (expected - self._den)
         if self.mean_channels.size:
-            if self._dy_mean is None or self._dy_mean.shape != dy.shape:
-                self._dy_mean = np.zeros_like(dy)
-            self._mean += a * (y - self._mean)
-            self._s += a * (S.diagonal() - self._s)
-            self._dy_mean += a * (dy - self._dy_mean)
-            self._h = h
+            i = self.mean_channels
+            self._mean += a * (y[i] - self._mean)
+            self._s += a * (S.diagonal()[i] - self._s)
+            self._dy_mean += a * (dy[i] - self._dy_mean)
+            self._a = a
         self._age += h
         if self._age < max(self.window, self.start):
             return self.state
