@@ -29,6 +29,7 @@ from ..suspension_fmi import contract
 from .model import IZS, IZU
 
 if TYPE_CHECKING:  # pragma: no cover
+    from .mass import MassEstimator
     from .suspension import EstimatorConfig
 
 # the state every estimator reports, in this order (m, m/s), at the instant of the sample
@@ -58,7 +59,8 @@ class RoadFilter:
         z_shift: m added to z_s and z_u for z_s_est and z_u_est (the KF family's lag of its
             reference), or None.
 
-    The composer calls ``checked_step``, then ``finish_step`` after its mass feedback, and reads
+    The composer calls ``checked_step``, then ``feed_back_mass`` (with ``mass_estimator`` 1), then
+    ``finish_step``, and reads
     the attributes after that; the defaults below suit an estimator that only implements ``step``.
     """
 
@@ -72,6 +74,11 @@ class RoadFilter:
     check = None
     reference: tuple[float, float] | None = None
     z_shift: float | None = None
+    # the mass feedback (feed_back_mass): the sprung mass last given (kg; None: the nominal), how
+    # many times one was given, and when (s)
+    m_model: float | None = None
+    mass_rebuilds: int = 0
+    _mass_given_at: float = -math.inf
 
     def __init__(self, cfg: "EstimatorConfig"):
         self.cfg = cfg
@@ -114,6 +121,21 @@ class RoadFilter:
         """The car moves off for the first time, having stood since the start: the estimate
         restarts from rest (``reset`` by default)."""
         self.reset()
+
+    def feed_back_mass(self, me: "MassEstimator", h: float, speed: float, time: float) -> None:
+        """The composer's ``mass_estimator`` 1 (mass.MassEstimator) took this step's sample: take
+        its since-change mass through ``set_mass`` when it disagrees with the mass last given, at
+        most every ``mass_rebuild_interval`` s (the KF family re-filters the change instead:
+        kf_road.KFRoad). ``speed`` m/s, ``time`` s since the start."""
+        t = self.cfg.tuning
+        if not (self.cfg.mass_feedback and me.samples * h >= t.mass_warmup):
+            return
+        given = float(self.cfg.m_s_nominal) if self.m_model is None else self.m_model
+        m, _, agree = me.agrees_with(given, t.mass_rebuild_tol, t.mass_rebuild_sigma, h)
+        if not agree and time - self._mass_given_at >= t.mass_rebuild_interval:
+            self.m_model, self._mass_given_at = m, time
+            self.mass_rebuilds += 1
+            self.set_mass(m)
 
     def set_mass(self, m_s: float) -> None:
         """The sprung mass (kg) the composer's mass estimator identified; ignored by default."""

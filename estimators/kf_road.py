@@ -390,10 +390,11 @@ class KFRoad(RoadFilter):
         return ok
 
     # --- mass feedback and re-filtering ----------------------------------------------------
-    def feed_back_mass(self, me: MassEstimator, h: float, speed: float) -> None:
+    def feed_back_mass(self, me: MassEstimator, h: float, speed: float, time: float) -> None:
         """After ``me`` took this step's sample: open a re-filter episode at a detected payload
         change, and rebuild the filter at the since-change mass when it disagrees with the model
-        mass, re-filtering the change within the episode (module doc)."""
+        mass, re-filtering the change within the episode (module doc). ``time`` is also this
+        filter's own clock."""
         cfg = self.cfg
         if me.resets != self._resets_seen:  # a payload change detected
             self._resets_seen = me.resets

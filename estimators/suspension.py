@@ -20,9 +20,10 @@ steady-state error in that band with the allowance for the sensors' calibration,
 ``KFRoad.band_ratio``). The states z_s_est, z_u_est stay relative to the reference, with the
 filter's ``z_shift`` added (the KF family's low-frequency lag, ``KFRoad.lag_rate``).
 
-Mass feedback. The road filter takes the mass of ``mass_estimator`` 1 (``MassEstimator``): a
-filter of the registry through ``set_mass``, when the since-change mass disagrees with the one it
-was given; the KF family rebuilds and re-filters the change itself (``KFRoad.feed_back_mass``).
+Mass feedback. The road filter takes the mass of ``mass_estimator`` 1 (``MassEstimator``) in
+``RoadFilter.feed_back_mass``: a filter of the registry through ``set_mass``, when the
+since-change mass disagrees with the one it was given; the KF family rebuilds and re-filters the
+change itself (``KFRoad.feed_back_mass``).
 The reported ``sprung_mass_est`` is the paper's fast forgetting-factor RLS.
 
 Bad samples. Each channel is checked every step: non-finite, or frozen (bit-identical for
@@ -245,10 +246,6 @@ class SuspensionEstimator:
         n_z = 3 if cfg.tuning.use_deflection else 2
         self._z_last = [math.nan] * n_z
         self._same_time = [0.0] * n_z
-        # the mass feedback to an estimator of the registry (the KF family's is its own)
-        self._m_given = float(cfg.m_s_nominal)  # kg, the mass last given (set_mass)
-        self._masses_given = 0
-        self._last_rebuild = -math.inf  # s
         self.outputs: dict[str, float] = {}
 
     # the KF family's filters and counters (kf_road.py, anchored_road.py); None or 0 otherwise
@@ -275,7 +272,8 @@ class SuspensionEstimator:
     @property
     def m_model(self) -> float:
         """kg, the sprung mass of the road filter's model (given to it)."""
-        return self.road.m_model if isinstance(self.road, KFRoad) else self._m_given
+        m = self.road.m_model
+        return float(self.cfg.m_s_nominal) if m is None else m
 
     @property
     def c_model(self) -> float:
@@ -285,7 +283,7 @@ class SuspensionEstimator:
     @property
     def mass_rebuilds(self) -> int:
         """Changes of the road filter's mass by the mass feedback."""
-        return self.road.mass_rebuilds if isinstance(self.road, KFRoad) else self._masses_given
+        return self.road.mass_rebuilds
 
     @property
     def model_builds(self) -> int:
@@ -344,10 +342,7 @@ class SuspensionEstimator:
             mass = float(f.mass)
         elif me is not None:
             self._update_mass(me, vals, float(deflection), live, used, status, h)
-            if isinstance(f, KFRoad):
-                f.feed_back_mass(me, h, speed)  # it re-filters the change (kf_road.py)
-            else:
-                self._feed_back_mass(me, h)
+            f.feed_back_mass(me, h, speed, self.time)
             mass = float(me.mass)
         else:
             mass = float(cfg.m_s_nominal)
@@ -405,18 +400,6 @@ class SuspensionEstimator:
             a_use, d_use = (a_use if ok_a else a_sub), (d_use if ok_d else d_sub)
         me.update(a_use, self._mass_deflection(d_use), h, use=ok_a and ok_d and status != STATUS_REINIT
                   and self.motion == MOVING)
-
-    def _feed_back_mass(self, me: MassEstimator, h: float) -> None:
-        """An estimator of the registry takes the since-change mass (``set_mass``) when it
-        disagrees with the mass last given, at most every ``mass_rebuild_interval`` s."""
-        t = self.cfg.tuning
-        if self.cfg.mass_feedback and me.samples * h >= t.mass_warmup:
-            m, _, agree = me.agrees_with(self._m_given, t.mass_rebuild_tol, t.mass_rebuild_sigma, h)
-            if not agree and self.time - self._last_rebuild >= t.mass_rebuild_interval:
-                self._m_given = m
-                self._last_rebuild = self.time
-                self._masses_given += 1
-                self.road.set_mass(m)
 
     def _mass_deflection(self, d: float) -> float:
         """The deflection (m) the mass regression pairs with this sample's body acceleration: the
