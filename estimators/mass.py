@@ -429,6 +429,48 @@ class MassEstimator:
         for a rejected or missing measurement): the state-variable filters run on, but the
         regression is not updated for it nor for ``guard`` s after it (the filters' memory of
         the substitution, a few low-pass time constants)."""
+        self._filter(acc_sprung, deflection, h)
+        self.samples += 1
+        if not use:
+            self._guard = self.guard
+        if self._guard > 0.0:
+            self._guard = max(self._guard - h, 0.0)
+            return self.mass
+        fa, phi, y = self._regression()
+        self._faa += min(h / EXCITATION_TAU, 1.0) * (fa * fa - self._faa)
+        y1 = y if phi is None else self._target(y, phi)  # N, the one-parameter target
+        if self.reset_ratio > 0 and self._change_detected(fa, y1, h):
+            self._restart(acc_sprung, deflection, self._svf_bd)
+            fa, phi, y = self._regression()
+            y1 = y if phi is None else self._target(y, phi)
+        if h != self._g_h:
+            self._g, self._g_h = math.exp(-h / self.slow_tau), h
+        g = self._g
+        self._s1 = g * self._s1 + 1.0
+        self._syy = g * self._syy + y * y
+        if self._faa > EXCITATION_MIN * self._noise_fa:
+            self.rls.update_scalar(fa, y1)
+        if self.estimate_damping:
+            self._S2pp = g * self._S2pp + np.outer(phi, phi)
+            self._S2py = g * self._S2py + phi * y
+            # c does not change with the payload: once estimated, after a detected change it is
+            # updated again only from DAMPING_MIN_DATA s of new data on (a deflection stuck for 0.1 s, then a
+            # spurious "change", had left 0.3 s of data and c 34 % low)
+            need = DAMPING_MIN_DATA if self.damping_identified else max(5 * self.n_corr, DAMPING_FIRST_DATA)
+            if self.samples % 16 == 0 and self._s1 * h >= need:
+                sol = self._slow_theta()
+                if sol is not None:
+                    self.c_hat = min(max(float(sol[1]), 0.0), 10.0 * self.c_s + 1e3)
+                    # both slopes c +- c_a stay >= 0
+                    self.extra_hat = [float(v) for v in sol[2:]]
+                    self.damping_identified = True
+        else:
+            self._spp = g * self._spp + fa * fa
+            self._spy = g * self._spy + fa * y
+        return self.mass
+
+    def _filter(self, acc_sprung: float, deflection: float, h: float) -> None:
+        """One sample through the state-variable filters (module doc), rebuilt when h changes."""
         if h != self._svf_h:  # the filter matrices as plain floats (3 x 3 in scalar arithmetic)
             Ad, B0, B1 = self.svf.discretise_linear(h)
             self._svf_ad, self._svf_bd, self._svf_h = tuple(Ad.tolist()), tuple((B0 + B1).tolist()), h
@@ -455,57 +497,23 @@ class MassEstimator:
         if self._S is not None:
             self._S_left -= h
             self._S = _svf_step(r0, r1, r2, HELD_INPUT, self._svf_bd, self._S, 0.0, 1.0) if self._S_left > 0.0 else None
-        self.samples += 1
-        if not use:
-            self._guard = self.guard
-        if self._guard > 0.0:
-            self._guard = max(self._guard - h, 0.0)
-            return self.mass
-        fa, phi, y = self._regression()
-        self._faa += min(h / EXCITATION_TAU, 1.0) * (fa * fa - self._faa)
-        y1 = y if phi is None else self._target(y, phi)  # N, the one-parameter target
-        if self.reset_ratio > 0:
-            # a-priori innovation (N) of eq. 22; the change estimate and its significance
-            e = y1 - fa * float(self.rls.theta[0])
-            a = min(h / self.reset_tau, 1.0)
-            self._spe += a * (fa * e - self._spe)
-            self._sff += a * (fa * fa - self._sff)
-            warm = self.samples * h >= self.noise_tau
-            e2 = min(e * e, 9.0 * self._s2) if warm else e * e
-            self._s2 += max(h / self.noise_tau, 1.0 / self.samples) * (e2 - self._s2)
-            self._hold = max(self._hold - h, 0.0)
-            if self._hold == 0.0 and self.samples * h > 3 * self.reset_tau and self._sff > 0.0:
-                dm = self._spe / self._sff  # kg
-                if (abs(dm) > self.reset_ratio * self.mass
-                        and (not warm or dm * dm * self._sff > self.reset_z ** 2 * self._s2)):
-                    self._restart(acc_sprung, deflection, self._svf_bd)
-                    fa, phi, y = self._regression()
-                    y1 = y if phi is None else self._target(y, phi)
-        if h != self._g_h:
-            self._g, self._g_h = math.exp(-h / self.slow_tau), h
-        g = self._g
-        self._s1 = g * self._s1 + 1.0
-        self._syy = g * self._syy + y * y
-        if self._faa > EXCITATION_MIN * self._noise_fa:
-            self.rls.update_scalar(fa, y1)
-        if self.estimate_damping:
-            self._S2pp = g * self._S2pp + np.outer(phi, phi)
-            self._S2py = g * self._S2py + phi * y
-            # c does not change with the payload: once estimated, after a detected change it is
-            # updated again only from DAMPING_MIN_DATA s of new data on (a deflection stuck for 0.1 s, then a
-            # spurious "change", had left 0.3 s of data and c 34 % low)
-            need = DAMPING_MIN_DATA if self.damping_identified else max(5 * self.n_corr, DAMPING_FIRST_DATA)
-            if self.samples % 16 == 0 and self._s1 * h >= need:
-                sol = self._slow_theta()
-                if sol is not None:
-                    self.c_hat = min(max(float(sol[1]), 0.0), 10.0 * self.c_s + 1e3)
-                    # both slopes c +- c_a stay >= 0
-                    self.extra_hat = [float(v) for v in sol[2:]]
-                    self.damping_identified = True
-        else:
-            self._spp = g * self._spp + fa * fa
-            self._spy = g * self._spy + fa * y
-        return self.mass
+
+    def _change_detected(self, fa: float, y1: float, h: float) -> bool:
+        """A payload change (module doc): the windowed estimate of the mass change from the
+        a-priori innovation (N) of eq. 22 is relevant and significant."""
+        e = y1 - fa * float(self.rls.theta[0])
+        a = min(h / self.reset_tau, 1.0)
+        self._spe += a * (fa * e - self._spe)
+        self._sff += a * (fa * fa - self._sff)
+        warm = self.samples * h >= self.noise_tau
+        e2 = min(e * e, 9.0 * self._s2) if warm else e * e
+        self._s2 += max(h / self.noise_tau, 1.0 / self.samples) * (e2 - self._s2)
+        self._hold = max(self._hold - h, 0.0)
+        if self._hold == 0.0 and self.samples * h > 3 * self.reset_tau and self._sff > 0.0:
+            dm = self._spe / self._sff  # kg
+            return bool(abs(dm) > self.reset_ratio * self.mass
+                        and (not warm or dm * dm * self._sff > self.reset_z ** 2 * self._s2))
+        return False
 
     def _noise_variances(self, h: float) -> tuple[float, float]:
         """Stationary variance of F[a_s] ((m/s^2)^2) and of F[d'] ((m/s)^2) when the sensors
