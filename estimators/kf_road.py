@@ -158,9 +158,12 @@ class KFRoad(RoadFilter):
         (``band_ratio``), with the start's share (anchored_road.py). A covariance that rounding
         has taken to 0 or below (or past the floats) claims nothing: an infinite variance, never
         a small one (seen on a 1 kg wheel damped at 1e5 N.s/m)."""
+        return self._band_variance() + self._start_var
+
+    def _band_variance(self) -> float:
+        """m^2: ``road_variance`` without the start's share."""
         p_zr = float(self._active()[0].P[IZR, IZR])
-        return (p_zr * self.band_ratio() * self._variance_factor() + self._start_var if p_zr > 0.0
-                else math.inf)
+        return p_zr * self.band_ratio() * self._variance_factor() if p_zr > 0.0 else math.inf
 
     def missing_speed(self, last: float) -> float:
         """A speed that is not finite: the model's (0 before the first)."""
