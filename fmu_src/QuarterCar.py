@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from suspension_estimation.plant.nonlinear_car import NonlinearQuarterCar
-from suspension_estimation.plant.quarter_car import QuarterCar as Plant, SensorNoise
+from suspension_estimation.plant.quarter_car import ROAD_INPUTS, QuarterCar as Plant, SensorNoise
 from suspension_estimation.plant.sensors import SensorErrors
 from suspension_estimation.plant.state_classes import QUARTER_CAR_STATE
 from suspension_estimation.plant.suspension_forces import AirSpring, BumpStops, PiecewiseDamper, in_contact
@@ -23,13 +23,14 @@ class QuarterCar(ContractSlave):
         vehicle = Vehicle(m_s=self.sprung_mass, m_u=self.m_u, k_s=self.k_s, k_t=self.k_t, c_s=self.c_s)
         noise = SensorNoise(self.acc_sprung_noise_std, self.acc_unsprung_noise_std, self.defl_noise_std)
         errors = SensorErrors.of(self)
+        road_input = ROAD_INPUTS[self.road_input]
         if self.spring_model == 0 and self.damper_model == 0:
-            self.plant = Plant(vehicle, noise, self.noise_seed, self.acc_sampling, errors)
+            self.plant = Plant(vehicle, noise, self.noise_seed, self.acc_sampling, errors, road_input)
         else:
             spring = AirSpring(**self._args(AirSpring)) if self.spring_model == 1 else None
             damper = PiecewiseDamper(**self._args(PiecewiseDamper)) if self.damper_model == 1 else None
             self.plant = NonlinearQuarterCar(vehicle, spring, damper, BumpStops(**self._args(BumpStops)),
-                                             noise, self.noise_seed, self.acc_sampling, errors)
+                                             noise, self.noise_seed, self.acc_sampling, errors, road_input)
         # start at rest on the road it stands on, not with a step from zero at the first step
         self.plant.settle(self.road_height)
         self._output()

@@ -209,8 +209,8 @@ def main(argv: list[str] | None = None) -> int:
     paper.add_argument("--warmup", type=float, default=10.0,
                        help="s not scored at the start of those runs (default 10)")
     paper.add_argument("--step", type=float, default=0.001,
-                       help="communication step in s (default 0.001; 10ms, vb and the sensors study's logging "
-                            "cases have their own)")
+                       help="communication step in s (default 0.001; 10ms and vb have their own; the sensors "
+                            "study's logging cases step their estimators every 1, 5 and 10 ms on it)")
     paper.add_argument("--classes", help="ISO classes of table2, 10ms, robust and sensors (default B,C,D; --study "
                                          "sensors alone: C)")
     paper.add_argument("--speeds", help="km/h of the sensors study (default 40,80; --study sensors alone: 40)")

@@ -293,6 +293,11 @@ class CoSimulation:
                 predecessors wrote this step) or JACOBI (every FMU on the values of the previous
                 communication point, as FMPy's SSP runner and libcosim do: every connection lags
                 a step)
+    rates       ``{instance: n}``: that instance steps every n-th communication step, over the n
+                steps at once, on its inputs at their end: an estimator fed by a logger that
+                samples the plant's outputs at 1 / (n h), the plant and road stepped at h. Its
+                outputs hold in between (score them at its own steps: rows n, 2n, ... of the record).
+                Gauss-Seidel only, a constant step size, a run a whole number of n steps.
 
     Use as a context manager (or call ``close()``): the FMUs are freed and their extracted
     files removed.
@@ -300,11 +305,19 @@ class CoSimulation:
 
     def __init__(self, system: System, parameters: Mapping[str, object] | None = None,
                  inputs: Mapping[str, InputValue] | None = None, record: Sequence[str] = (),
-                 start_time: float = 0.0, coupling: str = "gauss-seidel"):
+                 start_time: float = 0.0, coupling: str = "gauss-seidel", rates: Mapping[str, int] | None = None):
         self.system = system
         if coupling not in (GAUSS_SEIDEL, JACOBI):
             raise ValueError(f"coupling = {coupling!r} must be {GAUSS_SEIDEL!r} or {JACOBI!r}")
         self.coupling = coupling
+        self.rates = {k: v for k, v in (rates or {}).items() if v != 1}
+        for name, n in self.rates.items():
+            if name not in system.components:
+                raise KeyError(f"rates: no instance {name!r} in {system.name}")
+            if not (isinstance(n, (int, np.integer)) and n >= 1):
+                raise ValueError(f"rates[{name!r}] = {n!r} must be a whole number >= 1")
+        if self.rates and coupling != GAUSS_SEIDEL:
+            raise ValueError("rates need the Gauss-Seidel coupling")
         self.parameters = dict(parameters or {})
         self.inputs = dict(inputs or {})
         self.record = list(dict.fromkeys(record))
@@ -450,18 +463,23 @@ class CoSimulation:
             out[k] = rows[:, j]
         return out
 
-    def _step_instances(self, order: list[_Instance], t: float, h: float) -> tuple[_Instance, str] | None:
+    def _step_instances(self, order: list[_Instance], t: float, h: float,
+                        spans: Sequence[tuple[float, float]] | None = None) -> tuple[_Instance, str] | None:
         """One Gauss-Seidel step from t (s) by h (s): each instance in order reads its inputs from
-        the wiring buffer, steps, and writes its outputs there. Returns (instance, why) if one
+        the wiring buffer, steps, and writes its outputs there. ``spans``: per instance, its own
+        step (start s, size s), ending at t + h (``rates``). Returns (instance, why) if one
         refused the step, else None."""
         buf = self._buf
         if self.coupling == JACOBI:
             return self._step_jacobi(order, t, h)
-        for inst in order:
+        for j, inst in enumerate(order):
             for setter, vrs, idx in inst.sets:
                 setter(vrs, [buf[i] for i in idx])
             try:
-                inst.do_step(t, h)
+                if spans is None:
+                    inst.do_step(t, h)
+                else:
+                    inst.do_step(*spans[j])
             except FMICallException as e:
                 return inst, f"refused the step ({STATUS[e.status]})"
             for getter, vrs, idx in inst.gets:
@@ -542,12 +560,18 @@ class CoSimulation:
             n = len(steps)
             if stop_time is not None and abs(times[-1] - stop_time) > 1e-9 * max(1.0, abs(stop_time)):
                 raise ValueError(f"step sizes add up to {times[-1] - t0} s, not to stop time {stop_time} s")
+            if self.rates:
+                raise ValueError("rates need a constant step size")
+        for name, r in self.rates.items():
+            if n % r:
+                raise ValueError(f"{n} steps are not a whole number of the {r} steps of {name!r} (rates)")
         table = self._input_table(times)
         rows = np.zeros((n + 1, len(self.record)))
         buf = self._buf
         ext = self._external
         rec = self._record_slots
         order = [self.instances[k] for k in self.system.order]
+        rated = [(inst, self.rates.get(inst.name, 1)) for inst in order] if self.rates else None
 
         if self._used:
             self.reset()
@@ -573,7 +597,13 @@ class CoSimulation:
                 vals = table[k]
                 for j, s in enumerate(ext):
                     buf[s] = vals[j]
-                if (refusal := self._step_instances(order, t, h)) is not None:
+                if rated is None:
+                    refusal = self._step_instances(order, t, h)
+                else:  # those whose step ends here, each from its own step's start
+                    due = [(inst, r) for inst, r in rated if (k + 1) % r == 0]
+                    refusal = self._step_instances([i for i, _ in due], t, h,
+                                                   [(times[k + 1 - r], r * h) for _, r in due])
+                if refusal is not None:
                     raise self._fail(refusal[0], t, refusal[1], rows, k + 1, times)
                 rows[k + 1] = [buf[i] for i in rec]
                 if progress is not None and (k + 1) % every == 0:

@@ -24,6 +24,8 @@ class Stepper(CoSimulation):
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
+        if self.rates:
+            raise ValueError("Stepper steps every instance at every step (no rates)")
         for key, value in self.inputs.items():
             if not (callable(value) or np.ndim(value) == 0):
                 raise ValueError(f"input {key!r}: Stepper takes constants or functions of time, not arrays")

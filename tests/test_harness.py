@@ -162,3 +162,36 @@ def test_fmus_are_extracted_once_and_cleaned_up(road_plant):
     assert len(list(tmp.iterdir())) == 2
     sim.close()
     assert not Path(tmp).exists()
+
+
+def test_an_instance_with_a_rate_steps_on_point_samples_and_equals_its_core(full):
+    """``rates``: the estimator stepped every 10th 1 ms step over 10 ms, on the plant's outputs at
+    the end of its step (a logger sampling at 100 Hz beside a plant stepped at 1 kHz): its
+    outputs equal the plain-Python core fed those samples at h = 10 ms, and hold in between."""
+    from suspension_estimation.estimators import SuspensionEstimator
+
+    meas = ["QuarterCar.acc_sprung", "QuarterCar.acc_unsprung", "QuarterCar.susp_deflection"]
+    outs = ["SuspensionEstimator.road_height_est", "SuspensionEstimator.road_height_std",
+            "SuspensionEstimator.sprung_mass_est"]
+    r = simulate(full, stop=1.0, record=meas + outs, rates={"SuspensionEstimator": 10})
+    core = SuspensionEstimator()
+    got, want = [], []
+    for k in range(10, len(r), 10):
+        o = core.step(*(float(r[m][k]) for m in meas), V, 10e-3)
+        want.append([o[v.split(".")[1]] for v in outs])
+        got.append([r[v][k] for v in outs])
+        for j in range(k + 1, min(k + 10, len(r))):  # held until its next step
+            assert all(r[v][j] == r[v][k] for v in outs)
+    assert np.allclose(got, want, rtol=1e-12, atol=1e-15)
+    assert np.ptp(np.array(got)[:, 0]) > 0
+
+
+def test_rates_are_checked(full):
+    with pytest.raises(KeyError, match="no instance 'Nobody'"):
+        CoSimulation(full, rates={"Nobody": 2})
+    with pytest.raises(ValueError, match="whole number >= 1"):
+        CoSimulation(full, rates={"SuspensionEstimator": 2.5})
+    with pytest.raises(ValueError, match="Gauss-Seidel"):
+        CoSimulation(full, rates={"SuspensionEstimator": 2}, coupling="jacobi")
+    with pytest.raises(ValueError, match="not a whole number of the 7 steps"):
+        simulate(full, stop=0.2, inputs={"vehicle_speed": V}, rates={"SuspensionEstimator": 7})

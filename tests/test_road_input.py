@@ -86,3 +86,33 @@ def test_steady_state_plant_transfer_is_the_plants_response_to_a_sampled_sinusoi
         got = coef[0] - 1j * coef[1]
         G = plant_transfer(V, h, np.array([np.exp(-1j * w * h)]), acc_sampling, road_input)[0]
         np.testing.assert_allclose(got, G, rtol=1e-6, atol=1e-9 * np.max(np.abs(G)))
+
+
+@pytest.mark.parametrize("spring_model", [0, 1])
+def test_the_plant_fmus_road_input_is_the_cores(dist, spring_model):
+    """QuarterCar.fmu with road_input 1 behind ISORoad (Gauss-Seidel: the road at the step's end
+    is the plant's input) equals the core plant with LINEAR fed the same road, and differs from
+    the held road's; linear and air-spring plants."""
+    from suspension_estimation.harness.cosim import CoSimulation
+    from suspension_estimation.harness.ssp import ROAD_PLANT, ensure_system_ssp, read_ssp
+    from suspension_estimation.plant.suspension_forces import DEFAULT_AIR_SPRING, DEFAULT_DAMPER
+
+    system = read_ssp(ensure_system_ssp(dist, ROAD_PLANT), fmu_dir=dist)
+    h, v = 1e-3, 20.0
+    rec = ["ISORoad.road_height", "QuarterCar.acc_unsprung_true", "QuarterCar.z_s"]
+    runs = {}
+    for ri in (0, 1):
+        p = {"ISORoad.road_class": 4, "QuarterCar.road_input": ri,
+             "QuarterCar.spring_model": spring_model, "QuarterCar.damper_model": spring_model}
+        with CoSimulation(system, parameters=p, inputs={"vehicle_speed": v}, record=rec) as sim:
+            runs[ri] = sim.run(0.5, h)
+    r = runs[1]
+    car = (QuarterCar(V, road_input=LINEAR) if spring_model == 0 else
+           NonlinearQuarterCar(V, DEFAULT_AIR_SPRING, DEFAULT_DAMPER, road_input=LINEAR))
+    car.settle(r["ISORoad.road_height"][0])
+    acc = [car.acc_true[1]]
+    for zr in r["ISORoad.road_height"][1:]:
+        car.step(float(zr), h)
+        acc.append(car.acc_true[1])
+    assert np.allclose(r["QuarterCar.acc_unsprung_true"], acc, rtol=1e-9, atol=1e-9)
+    assert np.max(np.abs(runs[0]["QuarterCar.acc_unsprung_true"] - acc)) > 0.01 * np.ptp(acc)

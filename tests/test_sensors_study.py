@@ -52,3 +52,30 @@ def test_smallest_grid_through_the_fmus(dist, capsys):
     # (the known defect: the default integrates the bias)
     assert bias["default"]["rmse_raw_mm"] > 10 * ideal["rmse_raw_mm"], (bias["default"], ideal)
     assert np.isfinite([v for e in (ideal, *bias.values(), *scale.values()) for v in e.values()]).all()
+
+
+def test_logging_rates_through_the_fmus(dist):
+    """The logging cases: road and plant at 1 ms with the road moving linearly over the step, the
+    estimator stepped every 1, 5 or 10 ms on the plant's outputs then (CoSimulation rates), scored
+    at its own steps. Targets (issue): 200 Hz within 1.1x and 100 Hz within 1.5x of the 1 kHz HP
+    error; measured on the cores with the car simulated at 0.5 ms (benchmarks/logging_rates.py):
+    1.15x and 1.20x; here bounds 1.3x and 1.5x, the mass within 0.5 %, covered."""
+    from suspension_estimation.harness.studies.sensors import LOGGING, ONE_KHZ
+
+    study = Sensors(cases=tuple(LOGGING), plants=("linear",))
+    suite = PaperStudy(seeds=1, duration=20.0, warmup=8.0, classes=(3,), speeds=(40.0,), dist=dist)
+    study.check(suite)
+    specs = study.specs(suite)
+    assert [(s.log_every, s.road_input, s.step) for s in specs] == [(1, 1, 1e-3), (5, 1, 1e-3), (10, 1, 1e-3)]
+    suite.results = run_all(specs, workers=2, progress=False, runs=study.runs)
+    assert all(r["ok"] for r in suite.results), [r.get("error") for r in suite.results]
+    cells = study.runs_by_cell(suite)
+    one = cells[("linear", 3, 40, ONE_KHZ)][1]["default"]
+    r200 = cells[("linear", 3, 40, "200 Hz logging")][1]["default"]
+    r100 = cells[("linear", 3, 40, "100 Hz logging")][1]["default"]
+    print(one["err_std_hp_pct"], r200["err_std_hp_pct"], r100["err_std_hp_pct"])
+    assert r200["err_std_hp_pct"] < 1.3 * one["err_std_hp_pct"]
+    assert r100["err_std_hp_pct"] < 1.5 * one["err_std_hp_pct"]
+    for r in (one, r200, r100):
+        assert abs(r["mass_err_mean_pct"]) < 0.5 and r["coverage_2sigma"] > 0.9, r
+    assert "sensors HP at 200 / 100 Hz vs 1 kHz logging" in [t[0] for t in study.targets(suite)]

@@ -242,8 +242,8 @@ QUARTER_CAR: tuple[Var, ...] = (
         "0 = accelerations sampled at the end of the step; 1 = averaged over the step (anti-alias filtered sensor)",
         {0: "end of step", 1: "average over the step"}),
     Var("road_height", "input", "Real", "m", 0.0,
-        "road elevation under the tyre (held over the step); absolute levels are fine: the plant settles on the "
-        "first value and works relative to it", (-1e4, 1e4)),
+        "road elevation under the tyre (over the step: road_input); absolute levels are fine: the plant settles "
+        "on the first value and works relative to it", (-1e4, 1e4)),
     Var("sprung_mass", "input", "Real", "kg", V.m_s, "sprung mass; may change during a run (payload)",
         VEHICLE_RANGES["m_s"]),
     Var("acc_sprung", "output", "Real", "m/s2", None, "measured sprung-mass acceleration (with noise)"),
@@ -267,6 +267,11 @@ QUARTER_CAR: tuple[Var, ...] = (
         "(nonlinear plant; the linear plant has none)"),
     # a real car's sensor errors (plant/sensors.py); at the end, so that the value references above stay
     *_sensor_params(plant=True),
+    Var("road_input", "parameter", "Integer", None, 0,
+        "0 = road_height held over the step; 1 = the road moves linearly over the step from the last value to "
+        "this one: a road source stepped before the plant gives the road at the step's end, and a held road "
+        "is a staircase whose steps the tyre reads as impulses (on a 3 % grade at 72 km/h and 1 ms, a wheel "
+        "acceleration 1.4 m/s2 off)", {0: "held", 1: "linear"}),
 )
 
 # The suspension laws the nonlinear estimators (road_estimator 3, 5; mass_estimator 3) are told: the

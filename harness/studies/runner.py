@@ -110,6 +110,11 @@ class RunSpec:
     # defaults: no offset, bias or delay, unit gains). Only the plant gets them: what an estimator is
     # told is its own parameters' business.
     sensor_errors: tuple[float, ...] = ()
+    # the estimators step every ``log_every`` steps, on the plant's outputs then (a logger sampling
+    # at 1 / (log_every step) beside a plant stepped at ``step``: CoSimulation ``rates``); the
+    # plant's ``road_input`` (0 held over the step, 1 moving linearly)
+    log_every: int = 1
+    road_input: int = 0
 
     @property
     def name(self) -> str:
@@ -126,6 +131,8 @@ class RunSpec:
                    if tuple(self.plant_models) != (0, 0) else "")
                 + (f" {3.6 * self.speed:.0f} km/h {1e3 * self.step:g} ms acc_sampling {self.acc_sampling}"
                    if self.study == "sensors" else "")
+                + (f" logged every {self.log_every} steps" if self.log_every != 1 else "")
+                + (" road linear over the step" if self.road_input else "")
                 + (f" sensor errors {tuple(self.sensor_errors)}" if self.sensor_errors else ""))
 
 
@@ -154,7 +161,8 @@ def noise_params(spec: RunSpec) -> dict:
 def plant_params(spec: RunSpec) -> dict:
     """Parameters of the road and plant instances of ``system``."""
     p = {"ISORoad.road_class": spec.road_class, "ISORoad.seed": spec.seed,
-         "QuarterCar.noise_seed": NOISE_SEED_OFFSET + spec.seed, "QuarterCar.acc_sampling": spec.acc_sampling}
+         "QuarterCar.noise_seed": NOISE_SEED_OFFSET + spec.seed, "QuarterCar.acc_sampling": spec.acc_sampling,
+         "QuarterCar.road_input": spec.road_input}
     p.update({f"QuarterCar.{k}": v for k, v in {**vehicle_params(spec), **noise_params(spec)}.items()})
     p["QuarterCar.spring_model"], p["QuarterCar.damper_model"] = map(int, spec.plant_models)
     if spec.sensor_errors:
@@ -177,20 +185,21 @@ class Simulations:
         self._sims: dict[tuple, CoSimulation] = {}
 
     @staticmethod
-    def _key(system: System, record: Sequence[str]) -> tuple:
+    def _key(system: System, record: Sequence[str], rates: dict | None) -> tuple:
         return (tuple((k, str(v)) for k, v in system.components.items()), tuple(system.connections),
-                tuple(system.order), tuple(record))
+                tuple(system.order), tuple(record), tuple(sorted((rates or {}).items())))
 
-    def get(self, system: System, parameters: dict, inputs: dict, record: list[str]) -> CoSimulation:
-        """A CoSimulation of ``system`` ready to run with these parameters and inputs."""
-        key = self._key(system, record)
+    def get(self, system: System, parameters: dict, inputs: dict, record: list[str],
+            rates: dict | None = None) -> CoSimulation:
+        """A CoSimulation of ``system`` ready to run with these parameters, inputs and rates."""
+        key = self._key(system, record, rates)
         sim = self._sims.pop(key, None)
         if sim is not None:
             sim.reset(parameters, inputs)
         else:
             while len(self._sims) >= max(1, self.size):
                 self._sims.pop(next(iter(self._sims))).close()
-            sim = CoSimulation(system, parameters=parameters, inputs=inputs, record=record)
+            sim = CoSimulation(system, parameters=parameters, inputs=inputs, record=record, rates=rates)
         self._sims[key] = sim  # most recently used last
         return sim
 
@@ -241,11 +250,12 @@ def _instrument(sim: CoSimulation) -> tuple[dict[str, list[float]] | None, Calla
 
 
 def simulate(system: System, parameters: dict, inputs: dict, record: list[str], spec: RunSpec,
-             duration: float, sims: Simulations | None = None) -> tuple[np.ndarray, dict]:
+             duration: float, sims: Simulations | None = None, rates: dict | None = None) -> tuple[np.ndarray, dict]:
     """Run and return the record and where the time went (µs per step). With ``sims`` the
-    CoSimulation is taken from (and left in) that cache, else made and closed here."""
-    sim = sims.get(system, parameters, inputs, record) if sims is not None else \
-        CoSimulation(system, parameters=parameters, inputs=inputs, record=record)
+    CoSimulation is taken from (and left in) that cache, else made and closed here. ``rates``:
+    CoSimulation's."""
+    sim = sims.get(system, parameters, inputs, record, rates) if sims is not None else \
+        CoSimulation(system, parameters=parameters, inputs=inputs, record=record, rates=rates)
     try:
         acc, undo = _instrument(sim) if sims is None or sims.instrument else (None, lambda: None)
         try:

@@ -10,10 +10,15 @@ not told the errors, and ``told``, the same told the plant's eight sensor-error 
 known calibration it removes (what a user who measured them would set). On ideal sensors the two
 are the same estimator and run once (``default``).
 
-Logging rate (``LOGGING``): ideal sensors, the whole co-simulation at a 5 ms (200 Hz) or 10 ms
-(100 Hz) step, plant and estimator with ``acc_sampling`` 1 (accelerations averaged over the step,
-what an anti-aliased logger gives), against the same at 1 ms (``1 kHz averaged``), their
-reference. The sensor-error cases run at ``--step`` (1 ms by default).
+Logging rate (``LOGGING``): ideal sensors, road and plant stepped at ``--step`` (1 ms by default)
+with the road moving linearly over the step (QuarterCar ``road_input`` 1: a held road is a
+staircase whose steps the tyre reads as impulses), the estimators stepped every 1, 5 or 10 ms on
+the plant's outputs then (CoSimulation ``rates``: point samples, as a logger at 1 kHz, 200 or 100
+Hz without an anti-alias filter gives) and scored at their own steps; 200 and 100 Hz against
+``1 kHz logging``, their reference. (Stepping the whole co-simulation at the logging step with
+the accelerations averaged over it would measure the averaged-sensor model on a plant that is
+that model: a road held over each step.) The sensor-error cases run at ``--step`` with the road
+held.
 
 Plants (``PLANTS``): the contract's linear vehicle, told exactly, and the air spring with the
 asymmetric damper (QuarterCar ``spring_model`` = ``damper_model`` = 1), the estimators told its
@@ -33,11 +38,11 @@ together (one seed's realised band error alone is 0.6-1.35x its std: ten roads,
 docs/real-sensors.md):
 
 - HP road error <= ``HP_RATIO`` x that of the same run (plant, class, speed, seed) on ideal
-  sensors; at 200 / 100 Hz <= ``RATE_RATIO`` x that of the ``1 kHz averaged`` run;
+  sensors; at 200 / 100 Hz <= the ratio of ``LOGGING`` x that of the ``1 kHz logging`` run;
 - coverage of the profile's error by +-2 road_height_std in ``COVERAGE`` (the error in the
   distance band);
 - the sprung-mass estimate (its mean after the warm-up) within ``MASS_OK`` % of that of the ideal
-  run (the 1 kHz averaged run at 200 / 100 Hz); where the body accelerometer's gain is off and the
+  run (the 1 kHz logging run at 200 / 100 Hz); where the body accelerometer's gain is off and the
   estimator is not told (``default``), within that error + ``MASS_SLACK`` %: the body equation
   gives the mass as force over acceleration.
 """
@@ -57,7 +62,7 @@ from .runner import (CLASS_LETTERS, NOMINAL_MASS, PAPER000_VEHICLE, SENSOR_ERROR
 
 KIND = "sensors"  # RunSpec.study of its runs
 IDEAL = "ideal"
-AVERAGED = "1 kHz averaged"
+ONE_KHZ = "1 kHz logging"
 NONE = asdict(SensorErrors())  # no error: the plant's defaults
 # case -> the plant's sensor errors (m, m/s2, 1, s; the others none)
 ERRORS: dict[str, dict[str, float]] = {
@@ -77,10 +82,10 @@ ERRORS: dict[str, dict[str, float]] = {
     "all together": {"deflection_offset": 0.005, "acc_sprung_bias": 0.1, "acc_unsprung_bias": 0.5,
                      "acc_sprung_scale": 1.03, "acc_unsprung_scale": 1.03, "acc_unsprung_delay": 0.002},
 }
-# case -> (step s, HP ratio allowed against AVERAGED; None: judged against IDEAL); ideal sensors,
-# plant and estimator with acc_sampling 1
+# case -> (the estimators' step s, HP ratio allowed against ONE_KHZ; None: judged against IDEAL);
+# ideal sensors, the plant at --step with the road moving linearly over it
 LOGGING: dict[str, tuple[float, float | None]] = {
-    AVERAGED: (0.001, None),
+    ONE_KHZ: (0.001, None),
     "200 Hz logging": (0.005, 1.1),
     "100 Hz logging": (0.010, 1.5),
 }
@@ -103,10 +108,16 @@ def errors_of(case: str) -> tuple[float, ...]:
     return tuple(float({**NONE, **e}[k]) for k in SENSOR_ERROR_KEYS) if e else ()
 
 
+def log_every(case: str, step: float) -> int:
+    """The estimators' steps in plant steps of ``step`` s in ``case`` (1 outside ``LOGGING``)."""
+    return round(LOGGING[case][0] / step) if case in LOGGING else 1
+
+
 def case_of(spec: dict) -> str:
     """The case of a run's spec (``asdict(RunSpec)``)."""
-    if spec["acc_sampling"]:
-        return next(c for c, (h, _) in LOGGING.items() if math.isclose(spec["step"], h, rel_tol=1e-9))
+    if spec.get("road_input", 0):
+        return next(c for c, (h, _) in LOGGING.items()
+                    if math.isclose(spec["step"] * spec.get("log_every", 1), h, rel_tol=1e-9))
     errs = tuple(map(float, spec["sensor_errors"]))
     return next(c for c in ERRORS if errors_of(c) == errs)
 
@@ -155,7 +166,8 @@ def run(spec: RunSpec) -> dict:
         "road_height_est", "road_height_std", "sprung_mass_est", "status")]
     r, timing = simulate(build_system(Path(spec.dist), names), params,
                          {"vehicle_speed": spec.speed, "QuarterCar.sprung_mass": spec.mass}, record, spec,
-                         spec.duration)
+                         spec.duration, rates={n: spec.log_every for n in names})
+    r = r[::spec.log_every]  # the estimators' own steps (their outputs hold in between)
     t, truth = r["time"], r["ISORoad.road_height"]
     scored = t >= t[0] + spec.warmup
     out: dict = {"timing": timing, "estimators": {}}
@@ -214,15 +226,19 @@ class Sensors(Study):
     def check(self, suite) -> None:
         for c in self.cases:
             h = LOGGING[c][0] if c in LOGGING else suite.step
+            if c in LOGGING and not whole_steps(h, suite.step):
+                raise ValueError(f"--step = {suite.step} s does not divide the {1e3 * h:g} ms of the sensors study's "
+                                 f"case {c!r}")
             if not whole_steps(suite.duration, h):
                 raise ValueError(f"--duration = {suite.duration} s is not a whole number of the {1e3 * h:g} ms steps "
                                  f"of the sensors study's case {c!r}")
 
     def specs(self, suite) -> list[RunSpec]:
         d = str(Path(suite.dist).resolve())
-        return [RunSpec(KIND, c, s, suite.duration, suite.warmup, LOGGING[case][0] if case in LOGGING else suite.step,
-                        d, mass=NOMINAL_MASS, acc_sampling=1 if case in LOGGING else 0, vehicle=PAPER000_VEHICLE,
-                        speed=u / 3.6, plant_models=PLANTS[plant], sensor_errors=errors_of(case))
+        return [RunSpec(KIND, c, s, suite.duration, suite.warmup, suite.step, d, mass=NOMINAL_MASS,
+                        vehicle=PAPER000_VEHICLE, speed=u / 3.6, plant_models=PLANTS[plant],
+                        sensor_errors=errors_of(case), log_every=log_every(case, suite.step),
+                        road_input=int(case in LOGGING))
                 for plant in self.plants for c in suite.classes for u in self.kmh(suite) for case in self.cases
                 for s in range(1, suite.seeds + 1)]
 
@@ -245,7 +261,7 @@ class Sensors(Study):
     @staticmethod
     def reference(case: str) -> str:
         """The case the targets of ``case`` compare with."""
-        return AVERAGED if case in LOGGING and case != AVERAGED else IDEAL
+        return ONE_KHZ if case in LOGGING and case != ONE_KHZ else IDEAL
 
     @staticmethod
     def mass_bound(case: str, inst: str) -> float:
@@ -258,7 +274,7 @@ class Sensors(Study):
         seed that has its reference run."""
         runs, ref = cells.get((plant, cls, kmh, case), {}), cells.get((plant, cls, kmh, self.reference(case)), {})
         pairs = [(runs[s][inst], ref[s]["default"]) for s in runs if s in ref and inst in runs[s]]
-        ratio = LOGGING[case][1] if case in LOGGING and case != AVERAGED else HP_RATIO
+        ratio = LOGGING[case][1] if case in LOGGING and case != ONE_KHZ else HP_RATIO
         hp = [e["err_std_hp_pct"] <= ratio * r["err_std_hp_pct"] for e, r in pairs]
         mass = [abs(_mass_off_pct(e["mass_err_mean_pct"], r["mass_err_mean_pct"])) <= self.mass_bound(case, inst)
                 for e, r in pairs]
@@ -294,17 +310,18 @@ class Sensors(Study):
              f"its linearisation); its sensors with the case's error (plant/sensors.py). 'default' = road_estimator 2 "
              f"not told the errors; 'told' = the same told the plant's sensor-error values (its known calibration); "
              f"on ideal sensors and in the logging cases the two are one estimator. Logging cases: ideal sensors, "
-             f"the whole co-simulation at 5 ms (200 Hz) or 10 ms (100 Hz), accelerations averaged over the step "
-             f"(acc_sampling 1, plant and estimator), against the same at 1 ms ('1 kHz averaged'). Seeds "
+             f"road and plant at {1e3 * suite.step:g} ms with the road moving linearly over the step, the estimator "
+             f"stepped every 1, 5 or 10 ms on the plant's outputs then (point samples) and scored at its steps; "
+             f"200 and 100 Hz against '1 kHz logging'. Seeds "
              f"1..{suite.seeds}, {suite.duration:g} s runs, {suite.warmup:g} s warm-up; the sensor-error cases at "
              f"{1e3 * suite.step:g} ms. Each value: mean over seeds (worst seed). HP: HP road error std %; xref: HP "
-             f"over that of the same seed's reference run (ideal sensors; at 200 / 100 Hz the 1 kHz averaged run); "
+             f"over that of the same seed's reference run (ideal sensors; at 200 / 100 Hz the 1 kHz logging run); "
              f"profile: rms error mm of road_height_est against metrics.reference_profile; pcov: share of those "
              f"within +-2 road_height_std (the coverage target); mass: sprung-mass error % (mean "
              f"after the warm-up); max|mass|: the largest |error| % at any instant after the warm-up; status: the "
              f"largest seen. Targets: HP and mass on every seed, the coverage over the seeds together: HP <= "
              f"{HP_RATIO} x ideal (200 Hz <= {LOGGING['200 Hz logging'][1]} x, 100 Hz <= "
-             f"{LOGGING['100 Hz logging'][1]} x the 1 kHz averaged run); pcov in [{COVERAGE[0]}, {COVERAGE[1]}]; mass "
+             f"{LOGGING['100 Hz logging'][1]} x the 1 kHz logging run); pcov in [{COVERAGE[0]}, {COVERAGE[1]}]; mass "
              f"within {MASS_OK:g} % of the reference run's (default with the body accelerometer's gain off: that "
              f"error + {MASS_SLACK:g} %).", "",
              "| plant | ISO | km/h | case | estimator | HP % | xref | profile mm | pcov | mass % "
@@ -347,15 +364,15 @@ class Sensors(Study):
         out = []
         for inst in ("default", "told"):
             for key, what in (("hp", "HP road error vs ideal sensors"), ("coverage", "2-sigma coverage of the profile"),
-                              ("mass", "sprung mass vs its reference run (200 / 100 Hz: 1 kHz averaged)")):
+                              ("mass", "sprung mass vs its reference run (200 / 100 Hz: 1 kHz logging)")):
                 v = [(r, ok[key]) for r, ok in rows if r[4] == inst and ok[key] is not None
-                     and (r[3] not in LOGGING or key != "hp" or r[3] == AVERAGED)]
+                     and (r[3] not in LOGGING or key != "hp" or r[3] == ONE_KHZ)]
                 miss = [f"{p} ISO {CLASS_LETTERS[c - 1]} {u} {case}" for (p, c, u, case, _), ok in v if not ok]
                 out.append((f"sensors {what} ({inst})", verdict(not miss if v else None),
                             f"{len(v) - len(miss)}/{len(v)} cells" + (f"; MISS: {', '.join(miss)}" if miss else "")))
-        v = [(r, ok["hp"]) for r, ok in rows if r[3] in LOGGING and r[3] != AVERAGED and ok["hp"] is not None]
+        v = [(r, ok["hp"]) for r, ok in rows if r[3] in LOGGING and r[3] != ONE_KHZ and ok["hp"] is not None]
         miss = [f"{p} ISO {CLASS_LETTERS[c - 1]} {u} {case}" for (p, c, u, case, _), ok in v if not ok]
-        out.append(("sensors HP at 200 / 100 Hz vs 1 kHz averaged", verdict(not miss if v else None),
+        out.append(("sensors HP at 200 / 100 Hz vs 1 kHz logging", verdict(not miss if v else None),
                     f"{len(v) - len(miss)}/{len(v)} cells" + (f"; MISS: {', '.join(miss)}" if miss else "")))
         return out
 
