@@ -175,10 +175,15 @@ def run_scenario(scenario: Scenario, dist: Path = DIST, out: Path | None = None,
             raise ScenarioError(f"scenario {scenario.path.name}: 'output.record' names {key}, "
                                 f"which is not a variable of this system ({', '.join(system.components)})")
         record.append(key)
+    # with estimator_step: the estimator on the plant's outputs at its steps, the record at them
+    every = scenario.estimator_every if with_estimator else 1
     try:
-        with CoSimulation(system, parameters=parameters, inputs=inputs, record=record) as sim:
-            result = sim.run(scenario.duration, scenario.step, progress=progress)
+        with CoSimulation(system, parameters=parameters, inputs=inputs, record=record,
+                          rates={"SuspensionEstimator": every} if every > 1 else None) as sim:
+            result = sim.run(scenario.duration, scenario.step, progress=progress)[::every]
     except SimulationError as e:
+        if e.result is not None:
+            e.result = e.result[::every]
         if csv is not None:
             if e.result is not None and len(e.result):
                 write_csv(csv, e.result)
@@ -193,9 +198,11 @@ def run_scenario(scenario: Scenario, dist: Path = DIST, out: Path | None = None,
 def summary(run: Run) -> list[str]:
     """A few lines: the run, the plant response and, with the estimator, the scores of harness/metrics."""
     r = run.result
-    n = len(r) - 1
+    n = round((r["time"][-1] - r["time"][0]) / run.scenario.step) if len(r) else 0  # communication steps
     lines = [f"{run.scenario.name}: {' -> '.join(run.system.order)}, {r['time'][-1]:.6g} s in {n} steps, "
-             f"{run.wall_time:.2f} s wall ({1e6 * run.wall_time / max(n, 1):.0f} us/step)"]
+             f"{run.wall_time:.2f} s wall ({1e6 * run.wall_time / max(n, 1):.0f} us/step)"
+             + (f"; the estimator every {run.scenario.estimator_every} steps (the record at its steps)"
+                if run.with_estimator and run.scenario.estimator_every > 1 else "")]
 
     def rms(x):
         return float(np.sqrt(np.mean(np.square(x))))

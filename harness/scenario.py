@@ -7,6 +7,10 @@ given as a path. Keys (units in brackets; everything but ``duration`` and ``step
     duration = 20.0            # [s], or "profile": drive the whole [road] profile_file at the
                                # [speed] (the last whole step before its end)
     step = 0.001               # [s] communication step
+    estimator_step = 0.01      # [s] the estimator's step, a whole number of steps (default: step):
+                               # it runs on the plant's outputs at its own steps, as a data logger
+                               # sampling at 1 / estimator_step gives them, and the record holds
+                               # those rows (with [plant] road_input = 1 the road is not a staircase)
     system = "auto"            # "auto" (with the estimator when its FMU exists), "road_plant",
                                # "road_plant_estimator"
 
@@ -53,7 +57,7 @@ import numpy as np
 
 SCENARIOS = Path(__file__).resolve().parent / "scenarios"
 
-_TOP = {"description", "duration", "step", "system", "road", "speed", "sprung_mass", "noise", "plant",
+_TOP = {"description", "duration", "step", "estimator_step", "system", "road", "speed", "sprung_mass", "noise", "plant",
         "estimator", "output"}
 _SYSTEMS = ("auto", "road_plant", "road_plant_estimator")
 _PROFILE = {"value", "time", "interpolation"}
@@ -107,6 +111,7 @@ class Scenario:
     noise: dict = field(default_factory=dict)
     record: list[str] = field(default_factory=list)
     plots: bool = True
+    estimator_every: int = 1  # steps per estimator step (``estimator_step``)
 
     def parameters(self, with_estimator: bool) -> dict[str, object]:
         """Parameters of every instance by ``"instance.variable"``."""
@@ -253,11 +258,18 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         duration = _whole_profile_duration(where, road, speed, step)
     else:
         duration = _number(where, "duration", data["duration"], positive=True)
-    if step > duration:
-        raise _err(where, f"'step' = {step} s is longer than 'duration' = {duration} s")
-    n = round(duration / step)
-    if abs(n * step - duration) > 1e-9 * duration:
-        raise _err(where, f"'duration' = {duration} s is not a whole number of 'step' = {step} s")
+    est_step = _number(where, "estimator_step", data.get("estimator_step", step), positive=True)
+    every = round(est_step / step)
+    if every < 1 or abs(every * step - est_step) > 1e-9 * est_step:
+        raise _err(where, f"'estimator_step' = {est_step} s is not a whole number of 'step' = {step} s")
+    if data["duration"] == "profile":  # the last whole estimator step before the profile's end
+        duration = math.floor(duration / est_step + 1e-9) * est_step
+    if est_step > duration:
+        raise _err(where, f"'estimator_step' = {est_step} s is longer than 'duration' = {duration} s")
+    n = round(duration / est_step)
+    if abs(n * est_step - duration) > 1e-9 * duration:
+        name = "'estimator_step'" if "estimator_step" in data else "'step'"
+        raise _err(where, f"'duration' = {duration} s is not a whole number of {name} = {est_step} s")
     system = data.get("system", "auto")
     if system not in _SYSTEMS:
         raise _err(where, f"'system' must be one of {', '.join(_SYSTEMS)}, got {system!r}")
@@ -294,6 +306,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
 
     return Scenario(
         name=path.stem, path=path, description=description, duration=duration, step=step, system=system,
+        estimator_every=every,
         speed=speed,
         sprung_mass=_profile(where, "sprung_mass", data.get("sprung_mass"), 410.0, "step"),
         road=road, plant=_params(where, "plant", _table(where, data, "plant")),
