@@ -59,6 +59,10 @@ CASES: dict[str, tuple[dict, tuple | None]] = {
     "body bias step 0.5 m/s2": ({}, (0, "step", 0.5)),
     "body bias step 0.2 m/s2": ({}, (0, "step", 0.2)),
     "wheel bias step 1 m/s2": ({}, (1, "step", 1.0)),
+    # steps within the range the filter absorbs (issue 37 point 2): no alarm is due, only cover
+    "body bias step 0.1 m/s2": ({}, (0, "step", 0.1)),
+    "wheel bias step 0.5 m/s2": ({}, (1, "step", 0.5)),
+    "deflection step 5 mm": ({}, (2, "step", 0.005)),
 }
 DEAD_NOISE = (0.05, 0.5, 1e-4)  # the std of what a dead channel reads: its noise floor (m/s2, m/s2, m)
 
