@@ -396,8 +396,8 @@ class KFRoad(RoadFilter):
     def feed_back_mass(self, me: MassEstimator, h: float, speed: float, time: float) -> None:
         """After ``me`` took this step's sample: open a re-filter episode at a detected payload
         change, and rebuild the filter at the since-change mass when it disagrees with the model
-        mass, re-filtering the change within the episode (module doc). ``time`` is also this
-        filter's own clock."""
+        mass, re-filtering the change within the episode (module doc). ``time`` is not used:
+        this filter keeps its own clock (``self.time``)."""
         cfg = self.cfg
         if me.resets != self._resets_seen:  # a payload change detected
             self._resets_seen = me.resets

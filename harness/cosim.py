@@ -297,7 +297,8 @@ class CoSimulation:
                 steps at once, on its inputs at their end: an estimator fed by a logger that
                 samples the plant's outputs at 1 / (n h), the plant and road stepped at h. Its
                 outputs hold in between (score them at its own steps: rows n, 2n, ... of the record).
-                Gauss-Seidel only, a constant step size, a run a whole number of n steps.
+                Gauss-Seidel only, a constant step size, a run a whole number of n steps; an
+                entry with n = 1 changes nothing (its instance need not be in the system).
 
     Use as a context manager (or call ``close()``): the FMUs are freed and their extracted
     files removed.

@@ -179,7 +179,7 @@ def run_scenario(scenario: Scenario, dist: Path = DIST, out: Path | None = None,
     every = scenario.estimator_every if with_estimator else 1
     try:
         with CoSimulation(system, parameters=parameters, inputs=inputs, record=record,
-                          rates={"SuspensionEstimator": every} if every > 1 else None) as sim:
+                          rates={"SuspensionEstimator": every}) as sim:
             result = sim.run(scenario.duration, scenario.step, progress=progress)[::every]
     except SimulationError as e:
         if e.result is not None:
