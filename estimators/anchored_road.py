@@ -107,14 +107,24 @@ START_FADE = 0.25  # s, the output's move to and from the force-error filter alo
 START_BAND_GATE = 10.0
 
 
-class Blend:
-    """Second-order Butterworth low-pass (corner ``hz``) of a scalar, one sample per step of h s
-    (coefficients of scipy.signal.butter, direct form II transposed); ``y`` the last output."""
+def blend_corner(hz: float, h: float, coarse_step: float = math.inf, coarse_hz: float = 0.0) -> float:
+    """The blend's corner (Hz) at a step of h s: ``hz`` (Tuning.blend_hz), or ``coarse_hz`` at
+    steps longer than ``coarse_step`` s (Tuning.blend_coarse_step, blend_coarse_hz); never above
+    0.45 of the sampling rate."""
+    return min(coarse_hz if h > coarse_step else hz, 0.45 / h)
 
-    def __init__(self, hz: float):
+
+class Blend:
+    """Second-order Butterworth low-pass of a scalar, one sample per step of h s, its corner
+    ``blend_corner(hz, h, coarse_step, coarse_hz)`` (coefficients of scipy.signal.butter, direct
+    form II transposed); ``y`` the last output."""
+
+    def __init__(self, hz: float, coarse_step: float = math.inf, coarse_hz: float = 0.0):
         self.hz = float(hz)
+        self.coarse = (float(coarse_step), float(coarse_hz))
         self._h = None
         self._b = self._a = None  # the filter's coefficients at step _h
+        self._corner: float | None = None  # Hz, their corner
         self.reset()
 
     def reset(self) -> None:
@@ -127,8 +137,17 @@ class Blend:
 
     def step(self, u: float, h: float) -> float:
         if h != self._h:
-            b, a = butter(2, self.hz, fs=1.0 / h)
+            corner = blend_corner(self.hz, h, *self.coarse)
+            b, a = butter(2, corner, fs=1.0 / h)
             self._b, self._a, self._h = tuple(b.tolist()), tuple(a.tolist()), h
+            if corner != self._corner and self._corner is not None:
+                # a new corner: the output goes on from where it is, as if its input had held
+                # there (the state of the old corner's filter, taken as the new one's, rang:
+                # 1, 5, 2 ms steps read HP 6.1 % against 1.7 % at a fixed 1 ms)
+                (_, b1, b2), (_, a1, a2) = self._b, self._a
+                self.s2 = (b2 - a2) * self.y
+                self.s1 = (b1 - a1) * self.y + self.s2
+            self._corner = corner
         (b0, b1, b2), (_, a1, a2) = self._b, self._a
         y = b0 * u + self.s1
         self.s1 = b1 * u - a1 * y + self.s2
@@ -162,7 +181,7 @@ class AnchoredRoad(KFRoad):
                                          freeze_tol=t.freeze_tol, fast=t.fast_gain)
         self.anchor.R = self.R
         self.anchor_model: DiscreteModel | None = None
-        self.blend = Blend(t.blend_hz)
+        self.blend = Blend(t.blend_hz, t.blend_coarse_step, t.blend_coarse_hz)
         self.mode = TRUSTED
         self._hold_left = 0.0  # s of the anchor hold left (HOLDING, see _after_update)
         self.anchor_resets = 0

@@ -50,6 +50,15 @@ class Tuning:
     # force error leaves the body's absolute position to the double-integrated accelerometer
     # (raw road error 38 mm against 4.4 mm on ISO C at 40 km/h; module doc)
     blend_hz: float = 1.0
+    # ... at steps longer than blend_coarse_step s (logging below 400 Hz) the corner is
+    # blend_coarse_hz: there the force-error filter, which takes the body accelerometer nearly as
+    # an input and so integrates its point samples, is worse than the anchor over the whole band
+    # (exact vehicle, ISO C at 80 km/h, 10 ms: HP error 4.11 % at 1 Hz, 2.18 % at 30 Hz, the plain
+    # KF 1.88 %), with the vehicle off too (c_s +30 %, k_s -15 %: 16.1 % and 2-sigma coverage 0.42
+    # at 1 Hz, 6.5 % and 0.99 at 30 Hz); at 2 ms a 4 Hz corner was already no better than 1 Hz
+    # (cells -20 to +12 %), at 3 and 5 ms 30 Hz was (docs/real-sensors.md)
+    blend_coarse_step: float = 0.0025
+    blend_coarse_hz: float = 30.0
     damping_rebuild_tol: float = 0.03  # relative change of the identified damping that rebuilds the anchor
     # ... outside a re-filter episode, where the rebuild cannot be re-filtered. The identified
     # damping wanders by a few % after its first value (1997-2062 N.s/m on the sag road at

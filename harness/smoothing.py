@@ -499,7 +499,8 @@ def smooth_default(acc_sprung: np.ndarray, acc_unsprung: np.ndarray, susp_deflec
     2. Two passes, each the Kalman filter of a model followed by its RTS smoother (``_kalman_pass``,
        ``_rts_pass``: ``rts_smooth`` of the filter's record x_k|k, P_k|k, F_k, Q_k), from the car at
        rest at t = 0 (x = 0, P = 0):
-       - lo, the output below ``blend_hz`` (default ``Tuning.blend_hz``): the estimator's own model,
+       - lo, the output below ``blend_hz`` (default the estimator's, anchored_road.blend_corner at
+         h): the estimator's own model,
          the anchor's (exact, at the identified damping), or the force-error filter's
          (``model.force_error_matrices``, nominal mass and c_s) without the anchor; Q from the class
          max(class, q_class_min), the road held as the estimator has it;
@@ -530,6 +531,7 @@ def smooth_default(acc_sprung: np.ndarray, acc_unsprung: np.ndarray, susp_deflec
     (kg), damping_model (N.s/m) per step, anchor (1 kept, 0 dropped) as the passes used them."""
     from suspension_estimation.estimators.model import (IVR, IVS, IVU, IZR, IZS, IZU, DiscreteModel,
                                                         measurement_covariance)
+    from suspension_estimation.estimators.anchored_road import blend_corner
     from suspension_estimation.estimators.suspension import SuspensionEstimator
     from suspension_estimation.plant import iso8608
 
@@ -545,7 +547,8 @@ def smooth_default(acc_sprung: np.ndarray, acc_unsprung: np.ndarray, susp_deflec
     tun = cfg.tuning
     if int(cfg.road_estimator) != 2:
         raise ValueError(f"smooth_default smooths road_estimator 2, not {cfg.road_estimator}")
-    blend_hz = float(tun.blend_hz if blend_hz is None else blend_hz)
+    blend_hz = float(blend_corner(tun.blend_hz, h, tun.blend_coarse_step, tun.blend_coarse_hz)
+                     if blend_hz is None else blend_hz)
 
     # 1. the causal run
     causal, causal_std, causal_zs = np.empty(K), np.empty(K), np.empty(K)
