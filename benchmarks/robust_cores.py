@@ -51,7 +51,7 @@ WARMUP = 10.0  # s
 ESTIMATORS = {
     "default": {},
     "KF (0)": {"road_estimator": 0},
-    "force-error filter alone": {"blend_hz": 1e-9, "align_hz": 0.0, "mass_feedback": False},
+    "force-error filter alone": {"blend_hz": 1e-9, "blend_coarse_hz": 1e-9, "align_hz": 0.0, "mass_feedback": False},
     "EKF (3)": {"road_estimator": 3, "mass_estimator": 0},
     "UKF (5)": {"road_estimator": 5, "mass_estimator": 0},
     "dual observer (3, 3)": {"road_estimator": 3, "mass_estimator": 3},
