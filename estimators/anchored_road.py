@@ -107,7 +107,7 @@ START_FADE = 0.25  # s, the output's move to and from the force-error filter alo
 START_BAND_GATE = 10.0
 
 
-def blend_corner(hz: float, h: float, coarse_step: float = math.inf, coarse_hz: float = 0.0) -> float:
+def blend_corner(hz: float, h: float, coarse_step: float, coarse_hz: float) -> float:
     """The blend's corner (Hz) at a step of h s: ``hz`` (Tuning.blend_hz), or ``coarse_hz`` at
     steps longer than ``coarse_step`` s (Tuning.blend_coarse_step, blend_coarse_hz); never above
     0.45 of the sampling rate."""
@@ -119,12 +119,11 @@ class Blend:
     ``blend_corner(hz, h, coarse_step, coarse_hz)`` (coefficients of scipy.signal.butter, direct
     form II transposed); ``y`` the last output."""
 
-    def __init__(self, hz: float, coarse_step: float = math.inf, coarse_hz: float = 0.0):
+    def __init__(self, hz: float, coarse_step: float, coarse_hz: float):
         self.hz = float(hz)
         self.coarse = (float(coarse_step), float(coarse_hz))
         self._h = None
         self._b = self._a = None  # the filter's coefficients at step _h
-        self._corner: float | None = None  # Hz, their corner
         self.reset()
 
     def reset(self) -> None:
@@ -138,15 +137,15 @@ class Blend:
     def step(self, u: float, h: float) -> float:
         if h != self._h:
             corner = blend_corner(self.hz, h, *self.coarse)
+            moved = self._h is not None and corner != blend_corner(self.hz, self._h, *self.coarse)
             b, a = butter(2, corner, fs=1.0 / h)
             self._b, self._a, self._h = tuple(b.tolist()), tuple(a.tolist()), h
-            if corner != self._corner and self._corner is not None:
+            if moved:
                 # a new corner: the output goes on from where it is, as if its input had held
                 # there (the old corner's state taken as the new one's makes the output ring)
                 (_, b1, b2), (_, a1, a2) = self._b, self._a
                 self.s2 = (b2 - a2) * self.y
                 self.s1 = (b1 - a1) * self.y + self.s2
-            self._corner = corner
         (b0, b1, b2), (_, a1, a2) = self._b, self._a
         y = b0 * u + self.s1
         self.s1 = b1 * u - a1 * y + self.s2
