@@ -22,11 +22,13 @@
   first ``START_DISAGREE_SPAN`` s, where a disagreement that outlasts the identification of the
   damping drops the anchor and re-filters the start without it; there the anchor is also judged
   against the force-error filter run without the pull, in the profile's band
-  (``START_BAND_GATE``).
+  (``START_BAND_GATE``). Nor when the force-error filter is the one misled, by a body
+  accelerometer whose bias stepped (``KEEP_RATIO``).
 
 The anchor's mode (``mode``): ``TRUSTED``, ``HOLDING`` (the output fades back from the anchor's
-after a partial update, ``_hold_left`` s to go) or ``DROPPED`` (the suspension is not linear at
-low frequency: the force-error filter alone from then on). The start (``start``, with the
+after a partial update, ``_hold_left`` s to go), ``KEPT`` (the force-error filter was misled: the
+output is the anchor's while they disagree) or ``DROPPED`` (the suspension is not linear at low
+frequency: the force-error filter alone from then on). The start (``start``, with the
 damping estimated): ``START`` (the force-error filter without the pull, ``_start_kf``, runs
 beside: ``_start_output``), ``START_REFILTER`` (the anchor was dropped at the start: the start
 is re-filtered without it once this step's mass feedback is done) or ``RUNNING``.
@@ -52,7 +54,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .suspension import EstimatorConfig
 
 # the anchor's mode
-TRUSTED, HOLDING, DROPPED = "trusted", "holding", "dropped"
+TRUSTED, HOLDING, KEPT, DROPPED = "trusted", "holding", "kept", "dropped"
 # the start of a run with the damping estimated
 START, START_REFILTER, RUNNING = "start", "start re-filter", "running"
 
@@ -105,6 +107,28 @@ START_FADE = 0.25  # s, the output's move to and from the force-error filter alo
 # ISO B-D, 40 and 80 km/h): the linear cars of the robust grid at most 1.6 stds, the air spring
 # 78-484 stds, logged at 1 or 10 ms
 START_BAND_GATE = 10.0
+# After the start, an anchor that disagrees with the force-error filter is restarted, unless the
+# force-error filter is the one misled (docs/real-sensors.md, "A bias that steps mid-run"): a body
+# accelerometer whose bias stepped is read by it as a force, while the anchor takes it as noise;
+# a deflection zero that moved is the anchor's error instead. The anchor's innovations are alike
+# for both (a deflection offset d and a body bias -k_s d / m_s are the same error in its body
+# equation); the deflection innovations of the force-error filter are not: a jump of the
+# deflection reaches both filters at once, a body bias reaches it through the anchor's model only.
+# So when the anchor's deflection-innovation mean has just jumped (beyond KEEP_LIMIT, and KEEP_JUMP
+# times its rms over the KEEP_LEVEL_WINDOW s before it left KEEP_QUIET, at most KEEP_ONSET s ago:
+# a car that is not the model, whose anchor's mean wanders, stays out) and the force-error
+# filter's is below KEEP_RATIO of it, the anchor is KEPT; undecided, a restart waits up to
+# KEEP_WAIT s. KEPT ends after KEEP_SETTLE s of agreement; the bias the force-error states took up
+# since, beyond KEPT_BIAS_LIMIT, sets status 3
+KEEP_WINDOW = 1.0  # s, of the deflection-innovation means
+KEEP_LIMIT = 10.0  # the anchor's mean, in stds of a mean
+KEEP_RATIO = 0.4
+KEEP_SETTLE = 0.5  # s
+KEEP_WAIT = 0.25  # s
+KEEP_QUIET, KEEP_ONSET = 6.0, 0.5  # stds of a mean, s
+KEEP_LEVEL_WINDOW, KEEP_JUMP = 5.0, 4.0  # s, times the rms
+KEPT_BIAS_LIMIT = 0.35  # m/s^2
+ZD = 2  # the deflection's row in z
 
 
 def blend_corner(hz: float, h: float, coarse_step: float, coarse_hz: float) -> float:
@@ -187,6 +211,21 @@ class AnchoredRoad(KFRoad):
         self._reset_times: deque = deque()
         self._disagree_for = 0.0  # s, leaky count of disagreement once the damping is identified
         self._last_partial = -math.inf  # s, the last update without every channel
+        # KEPT (KEEP_RATIO): the last disagreement, the means of the two filters' deflection
+        # innovations in their stds (force-error filter, anchor), the gap's profile since the
+        # anchor was kept, and the anchor's weight in the output
+        self._last_disagree = -math.inf
+        self._disagree_from = -math.inf  # s, the start of the disagreement
+        self._loud_from: float | None = None  # s, since when the anchor's mean is beyond KEEP_QUIET
+        self._level = 0.0  # its mean square over KEEP_LEVEL_WINDOW s, in its variances
+        self._level_before = 0.0  # ... when it last left KEEP_QUIET
+        self._defl_mean = [0.0, 0.0]
+        self._kept_gap: Profiler | None = None
+        self._kept_peak = 0.0  # m, its largest value, fading over profile_cutoff m
+        self._kept_w = 0.0
+        self._force_mean = 0.0  # N, the force-error states' mean over KEEP_WINDOW s
+        self._kept_force = 0.0  # N, that mean when the anchor was kept
+        self._kept_bias = 0.0  # m/s^2, the mean body bias they have taken up since (KEPT_BIAS_LIMIT)
         # with the damping estimated: the force-error filter without the velocity pull, run
         # through the start (START_DISAGREE_SPAN), and its weight in the output
         self.start = RUNNING
@@ -205,8 +244,10 @@ class AnchoredRoad(KFRoad):
     def _hold(self, left: float) -> None:
         """``left`` s of the anchor hold to go: HOLDING while it lasts (a dropped anchor stays dropped)."""
         self._hold_left = left
-        if self.mode != DROPPED:
-            self.mode = HOLDING if left > 0.0 else TRUSTED
+        if left > 0.0 and self.mode != DROPPED:
+            self.mode = HOLDING
+        elif self.mode == HOLDING:
+            self.mode = TRUSTED
 
     def _active(self) -> tuple[LinearKF, DiscreteModel | None]:
         return (self.anchor, self.anchor_model) if self.mode != DROPPED else (self.kf, self.model)
@@ -214,6 +255,8 @@ class AnchoredRoad(KFRoad):
     def _restart_anchor(self, from_rest: bool) -> None:
         self.blend.reset()
         self._hold(0.0)
+        if self.mode != DROPPED:
+            self.mode = TRUSTED
         a = self.anchor
         na = a.dim_x
         a.start_at(np.zeros(na))
@@ -264,6 +307,23 @@ class AnchoredRoad(KFRoad):
         _apply(self.anchor, z, rows)
         if self.start == START and not replay:
             _apply(self._start_kf, z, rows)
+        if rows is None and not replay:
+            a = min(self._h / KEEP_WINDOW, 1.0)
+            m = self._defl_mean
+            for i, f in enumerate((self.kf, self.anchor)):
+                m[i] += a * (float(f.y[ZD]) / math.sqrt(float(f.S[ZD, ZD])) - m[i])
+            m2 = m[1] * m[1] * (2.0 - a) / a  # the anchor's mean squared, in its variances
+            if m2 <= KEEP_QUIET ** 2:
+                self._loud_from = None
+            elif self._loud_from is None:
+                self._loud_from, self._level_before = self.time, self._level
+            self._level += min(self._h / KEEP_LEVEL_WINDOW, 1.0) * (m2 - self._level)
+            force = self._force_sum()
+            self._force_mean += a * (force - self._force_mean)
+            if self.mode == KEPT:
+                self._kept_bias += a * (-(force - self._kept_force) / self.m_model - self._kept_bias)
+                if abs(self._kept_bias) > KEPT_BIAS_LIMIT and self.check is not None:
+                    self.check.flag()  # a body bias beyond the range: status 3
         self._after_update(rows is not None)
 
     def _anchor_sum(self) -> float:
@@ -334,6 +394,8 @@ class AnchoredRoad(KFRoad):
                         self._distrust_anchor()
                         self.start = START_REFILTER
                 return
+            if self.mode == KEPT if replay else self._keep_anchor():
+                return
             # the anchor disagrees with the force-error filter beyond what the latter's own
             # error explains: its linear spring and damper are wrong at low frequency (a
             # nonlinear suspension): it restarts from the force-error filter's state
@@ -353,8 +415,40 @@ class AnchoredRoad(KFRoad):
                 recent.popleft()
             if len(recent) >= ANCHOR_DISTRUST_RESETS and self._resets_identified >= ANCHOR_DISTRUST_IDENTIFIED:
                 self._distrust_anchor()  # restarting does not help
-        elif self._disagree_for > 0.0 and not replay:
-            self._disagree_for = max(self._disagree_for - self._h, 0.0)
+        elif not replay:
+            if self._disagree_for > 0.0:
+                self._disagree_for = max(self._disagree_for - self._h, 0.0)
+            if self.mode == KEPT and self.time - self._last_disagree > KEEP_SETTLE:
+                self.mode = TRUSTED
+
+    def _keep_anchor(self) -> bool:
+        """A disagreement after the start: True when the anchor is kept, or the decision waits
+        (no restart this step; KEEP_RATIO)."""
+        if self.time - self._last_disagree > KEEP_SETTLE:
+            self._disagree_from = self.time
+        self._last_disagree = self.time
+        if self.mode == KEPT:
+            return True
+        if (self.mode != TRUSTED or self.time - self._last_partial <= ALIGN_AFTER_FAULT
+                or (self._reset_times and self.time - self._reset_times[-1] < ANCHOR_DISTRUST_SPAN)):
+            return False  # after a sensor fault, or restarting already: restart
+        m_kf, m_anchor = self._defl_mean
+        a = min(self._h / KEEP_WINDOW, 1.0)  # the mean of white noise has a variance a / (2 - a)
+        if m_anchor * m_anchor * (2.0 - a) <= KEEP_LIMIT ** 2 * a:
+            return self.time - self._disagree_from < KEEP_WAIT  # not yet told apart
+        jumped = (self._loud_from is not None and self.time - self._loud_from <= KEEP_ONSET
+                  and m_anchor * m_anchor * (2.0 - a) > KEEP_JUMP ** 2 * a * self._level_before)
+        if jumped and m_kf * m_anchor < KEEP_RATIO * m_anchor ** 2:
+            self.mode = KEPT  # the force-error filter was misled
+            self._kept_force, self._kept_bias = self._force_mean, 0.0
+            self._kept_gap, self._kept_peak = Profiler(self.cfg.profile_cutoff, self.reference), 0.0
+            return True
+        return False
+
+    def _force_sum(self) -> float:
+        """N, the force-error filter's suspension-force error states."""
+        n = self.n_states
+        return float(sum(self.kf.x[n - self.force_states:n]))
 
     def _start_gap_large(self) -> bool:
         """At the start: the output and the force-error filter without the pull differ in the
@@ -385,7 +479,9 @@ class AnchoredRoad(KFRoad):
             self._refilter(from_start=True)
 
     def _takes_mass(self) -> bool:
-        return self.mode != DROPPED
+        # KEPT: the body accelerometer's bias stepped, and the mass regression, which reads m a_s,
+        # took the step for a payload change (fed back, its since-change mass moved the anchor)
+        return self.mode not in (DROPPED, KEPT)
 
     def _damping_known(self, me: MassEstimator) -> bool:
         return me.damping_identified
@@ -418,15 +514,23 @@ class AnchoredRoad(KFRoad):
             if self.mode == HOLDING:  # the anchor hold (_after_update)
                 hold = self.cfg.tuning.anchor_hold
                 w = self._hold_left / hold if hold > 0 else 0.0
-                if w > 0.0:
-                    xa = self.anchor.x.tolist()
-                    x = [w * xa[i] + (1.0 - w) * x[i] for i in range(N_STATES)]
+            else:  # the anchor kept (KEEP_RATIO): faded in and out over START_FADE s
+                kw = self._kept_w
+                self._kept_w = w = (min(kw + h / START_FADE, 1.0) if self.mode == KEPT
+                                    else max(kw - h / START_FADE, 0.0))
+            if w > 0.0:
+                xa = self.anchor.x.tolist()
+                x = [w * xa[i] + (1.0 - w) * x[i] for i in range(N_STATES)]
         start_var = 0.0
+        if self.mode == KEPT:  # the output may be off by the two filters' gap since then
+            gap = abs(self._kept_gap.step(float(self.anchor.x[IZR] - self.kf.x[IZR]), h, ds))
+            self._kept_peak = max(gap, self._kept_peak * math.exp(-ds / self.cfg.profile_cutoff))
+            start_var = self._kept_peak ** 2
         if self.start == START:
             # the share of the two filters' road gap the output may be off by, in the profile's band
             share, gap = self._start_output(x, h)
             band_gap = self._gap_profile.step(gap, h, ds)
-            start_var = (share * band_gap) ** 2
+            start_var += (share * band_gap) ** 2
             if self._drift is None and self.mass_est.damping_identified:
                 self._drift = Profiler(self.cfg.profile_cutoff, self.reference)
             self._start_band_gap = band_gap if self._drift is None else self._drift.step(gap, h, ds)

@@ -138,6 +138,12 @@ class InnovationCheck:
         return self.state
 
 
+    def flag(self) -> None:
+        """A sensor error seen otherwise (a body-accelerometer bias beyond the range taken up,
+        anchored_road.KEPT_BIAS_LIMIT): INCONSISTENT, cleared as after a ratio above the limit."""
+        self.state, self._clear = INCONSISTENT, 0.0
+
+
 class InnovationRatio:
     """Is the car what the observer's model says? The exponential average over ``window`` s of
     NIS / m, the normalised innovation squared of each update over its number of measurements:
