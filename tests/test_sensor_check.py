@@ -161,18 +161,22 @@ def test_a_deflection_offset_does_not_show_in_the_default_filters_innovations():
     assert nis[0, "offset"] > 10.0 * nis[0, "ideal"]
 
 
-def test_through_the_fmu(dist):
-    """The FMU reports status 3 after a sensor dies, as the core does."""
+@pytest.mark.parametrize("fault", [_dead_deflection, _body_bias_step])
+def test_through_the_fmu(dist, fault):
+    """The FMU reports status 3 after a sensor dies, or a body bias steps beyond the range (the
+    anchor kept, anchored_road.KEEP_RATIO), with the core's profile to the bit."""
     t, s, meas, zr, v = drive(1, 11.0)
-    _dead_deflection(t, meas)
-    core = estimate(meas, v)["status"]
+    fault(t, meas)
+    core = estimate(meas, v)
     d = Driven(dist / "SuspensionEstimator.fmu")
     try:
-        status = []
+        status, road = [], []
         for z, sp in zip(meas, v):
             d.step(H, acc_sprung=z[0], acc_unsprung=z[1], susp_deflection=z[2], vehicle_speed=sp)
             status.append(d.get("status"))
+            road.append(d.get("road_height_est"))
     finally:
         d.close()
-    assert np.array_equal(np.array(status), core)
+    assert np.array_equal(np.array(status), core["status"])
+    assert np.array_equal(np.array(road), core["road_height_est"])
     assert status[-1] == STATUS_SENSOR
