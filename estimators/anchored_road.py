@@ -23,7 +23,7 @@
   damping drops the anchor and re-filters the start without it; there the anchor is also judged
   against the force-error filter run without the pull, in the profile's band
   (``START_BAND_GATE``). Nor when the force-error filter is the one misled, by a body
-  accelerometer whose bias stepped (``KEEP_RATIO``).
+  accelerometer whose bias stepped (bias_step.py).
 
 The anchor's mode (``mode``): ``TRUSTED``, ``HOLDING`` (the output fades back from the anchor's
 after a partial update, ``_hold_left`` s to go), ``KEPT`` (the force-error filter was misled: the
@@ -48,6 +48,7 @@ from .kalman import LinearKF
 from .kf_road import KFRoad, _apply
 from .mass import MassEstimator
 from .model import IVR, IVS, IVU, IZR, IZS, IZU, N_STATES, DiscreteModel, ModelNoise
+from .bias_step import BiasStep
 from .road_profile import Profiler
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -108,26 +109,10 @@ START_FADE = 0.25  # s, the output's move to and from the force-error filter alo
 # 78-484 stds, logged at 1 or 10 ms
 START_BAND_GATE = 10.0
 # After the start, an anchor that disagrees with the force-error filter is restarted, unless the
-# force-error filter is the one misled (docs/real-sensors.md, "A bias that steps mid-run"): a body
-# accelerometer whose bias stepped is read by it as a force, while the anchor takes it as noise;
-# a deflection zero that moved is the anchor's error instead. The anchor's innovations are alike
-# for both (a deflection offset d and a body bias -k_s d / m_s are the same error in its body
-# equation); the deflection innovations of the force-error filter are not: a jump of the
-# deflection reaches both filters at once, a body bias reaches it through the anchor's model only.
-# So when the anchor's deflection-innovation mean has just jumped (beyond KEEP_LIMIT, and KEEP_JUMP
-# times its rms over the KEEP_LEVEL_WINDOW s before it left KEEP_QUIET, at most KEEP_ONSET s ago:
-# a car that is not the model, whose anchor's mean wanders, stays out) and the force-error
-# filter's is below KEEP_RATIO of it, the anchor is KEPT; undecided, a restart waits up to
-# KEEP_WAIT s. KEPT ends after KEEP_SETTLE s of agreement; the bias the force-error states took up
-# since, beyond KEPT_BIAS_LIMIT, sets status 3
-KEEP_WINDOW = 1.0  # s, of the deflection-innovation means
-KEEP_LIMIT = 10.0  # the anchor's mean, in stds of a mean
-KEEP_RATIO = 0.4
-KEEP_SETTLE = 0.5  # s
+# force-error filter is the one misled (bias_step.py: a body-accelerometer bias that stepped); not
+# told apart yet, the restart waits up to KEEP_WAIT s. KEPT ends after KEEP_SETTLE s of agreement
 KEEP_WAIT = 0.25  # s
-KEEP_QUIET, KEEP_ONSET = 6.0, 0.5  # stds of a mean, s
-KEEP_LEVEL_WINDOW, KEEP_JUMP = 5.0, 4.0  # s, times the rms
-KEPT_BIAS_LIMIT = 0.35  # m/s^2
+KEEP_SETTLE = 0.5  # s
 ZD = 2  # the deflection's row in z
 
 
@@ -211,21 +196,15 @@ class AnchoredRoad(KFRoad):
         self._reset_times: deque = deque()
         self._disagree_for = 0.0  # s, leaky count of disagreement once the damping is identified
         self._last_partial = -math.inf  # s, the last update without every channel
-        # KEPT (KEEP_RATIO): the last disagreement, the means of the two filters' deflection
-        # innovations in their stds (force-error filter, anchor), the gap's profile since the
-        # anchor was kept, and the anchor's weight in the output
+        # KEPT (bias_step.py): the judge, the disagreement's start and last step (s), the gap's
+        # profile since the anchor was kept, its largest value fading over profile_cutoff m, and
+        # the anchor's weight in the output
+        self.bias_step = BiasStep()
+        self._disagree_from = -math.inf
         self._last_disagree = -math.inf
-        self._disagree_from = -math.inf  # s, the start of the disagreement
-        self._loud_from: float | None = None  # s, since when the anchor's mean is beyond KEEP_QUIET
-        self._level = 0.0  # its mean square over KEEP_LEVEL_WINDOW s, in its variances
-        self._level_before = 0.0  # ... when it last left KEEP_QUIET
-        self._defl_mean = [0.0, 0.0]
         self._kept_gap: Profiler | None = None
-        self._kept_peak = 0.0  # m, its largest value, fading over profile_cutoff m
+        self._kept_peak = 0.0
         self._kept_w = 0.0
-        self._force_mean = 0.0  # N, the force-error states' mean over KEEP_WINDOW s
-        self._kept_force = 0.0  # N, that mean when the anchor was kept
-        self._kept_bias = 0.0  # m/s^2, the mean body bias they have taken up since (KEPT_BIAS_LIMIT)
         # with the damping estimated: the force-error filter without the velocity pull, run
         # through the start (START_DISAGREE_SPAN), and its weight in the output
         self.start = RUNNING
@@ -257,6 +236,7 @@ class AnchoredRoad(KFRoad):
         self._hold(0.0)
         if self.mode != DROPPED:
             self.mode = TRUSTED
+            self.bias_step.release()
         a = self.anchor
         na = a.dim_x
         a.start_at(np.zeros(na))
@@ -308,22 +288,12 @@ class AnchoredRoad(KFRoad):
         if self.start == START and not replay:
             _apply(self._start_kf, z, rows)
         if rows is None and not replay:
-            a = min(self._h / KEEP_WINDOW, 1.0)
-            m = self._defl_mean
-            for i, f in enumerate((self.kf, self.anchor)):
-                m[i] += a * (float(f.y[ZD]) / math.sqrt(float(f.S[ZD, ZD])) - m[i])
-            m2 = m[1] * m[1] * (2.0 - a) / a  # the anchor's mean squared, in its variances
-            if m2 <= KEEP_QUIET ** 2:
-                self._loud_from = None
-            elif self._loud_from is None:
-                self._loud_from, self._level_before = self.time, self._level
-            self._level += min(self._h / KEEP_LEVEL_WINDOW, 1.0) * (m2 - self._level)
-            force = self._force_sum()
-            self._force_mean += a * (force - self._force_mean)
-            if self.mode == KEPT:
-                self._kept_bias += a * (-(force - self._kept_force) / self.m_model - self._kept_bias)
-                if abs(self._kept_bias) > KEPT_BIAS_LIMIT and self.check is not None:
-                    self.check.flag()  # a body bias beyond the range: status 3
+            kf, an, n = self.kf, self.anchor, self.n_states
+            self.bias_step.update(float(kf.y[ZD]) / math.sqrt(float(kf.S[ZD, ZD])),
+                                  float(an.y[ZD]) / math.sqrt(float(an.S[ZD, ZD])),
+                                  float(sum(kf.x[n - self.force_states:n])), self._h, self.time, self.m_model)
+            if self.mode == KEPT and self.bias_step.beyond_range and self.check is not None:
+                self.check.flag()  # a body bias beyond the range: status 3
         self._after_update(rows is not None)
 
     def _anchor_sum(self) -> float:
@@ -420,10 +390,11 @@ class AnchoredRoad(KFRoad):
                 self._disagree_for = max(self._disagree_for - self._h, 0.0)
             if self.mode == KEPT and self.time - self._last_disagree > KEEP_SETTLE:
                 self.mode = TRUSTED
+                self.bias_step.release()
 
     def _keep_anchor(self) -> bool:
         """A disagreement after the start: True when the anchor is kept, or the decision waits
-        (no restart this step; KEEP_RATIO)."""
+        (no restart this step; bias_step.py)."""
         if self.time - self._last_disagree > KEEP_SETTLE:
             self._disagree_from = self.time
         self._last_disagree = self.time
@@ -432,23 +403,13 @@ class AnchoredRoad(KFRoad):
         if (self.mode != TRUSTED or self.time - self._last_partial <= ALIGN_AFTER_FAULT
                 or (self._reset_times and self.time - self._reset_times[-1] < ANCHOR_DISTRUST_SPAN)):
             return False  # after a sensor fault, or restarting already: restart
-        m_kf, m_anchor = self._defl_mean
-        a = min(self._h / KEEP_WINDOW, 1.0)  # the mean of white noise has a variance a / (2 - a)
-        if m_anchor * m_anchor * (2.0 - a) <= KEEP_LIMIT ** 2 * a:
-            return self.time - self._disagree_from < KEEP_WAIT  # not yet told apart
-        jumped = (self._loud_from is not None and self.time - self._loud_from <= KEEP_ONSET
-                  and m_anchor * m_anchor * (2.0 - a) > KEEP_JUMP ** 2 * a * self._level_before)
-        if jumped and m_kf * m_anchor < KEEP_RATIO * m_anchor ** 2:
-            self.mode = KEPT  # the force-error filter was misled
-            self._kept_force, self._kept_bias = self._force_mean, 0.0
+        misled = self.bias_step.judge(self.time)
+        if misled is None:
+            return self.time - self._disagree_from < KEEP_WAIT
+        if misled:
+            self.mode = KEPT
             self._kept_gap, self._kept_peak = Profiler(self.cfg.profile_cutoff, self.reference), 0.0
-            return True
-        return False
-
-    def _force_sum(self) -> float:
-        """N, the force-error filter's suspension-force error states."""
-        n = self.n_states
-        return float(sum(self.kf.x[n - self.force_states:n]))
+        return misled
 
     def _start_gap_large(self) -> bool:
         """At the start: the output and the force-error filter without the pull differ in the
@@ -514,7 +475,7 @@ class AnchoredRoad(KFRoad):
             if self.mode == HOLDING:  # the anchor hold (_after_update)
                 hold = self.cfg.tuning.anchor_hold
                 w = self._hold_left / hold if hold > 0 else 0.0
-            else:  # the anchor kept (KEEP_RATIO): faded in and out over START_FADE s
+            else:  # the anchor kept (bias_step.py): faded in and out over START_FADE s
                 kw = self._kept_w
                 self._kept_w = w = (min(kw + h / START_FADE, 1.0) if self.mode == KEPT
                                     else max(kw - h / START_FADE, 0.0))

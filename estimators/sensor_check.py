@@ -140,7 +140,7 @@ class InnovationCheck:
 
     def flag(self) -> None:
         """A sensor error seen otherwise (a body-accelerometer bias beyond the range taken up,
-        anchored_road.KEPT_BIAS_LIMIT): INCONSISTENT, cleared as after a ratio above the limit."""
+        bias_step.BIAS_LIMIT): INCONSISTENT, cleared as after a ratio above the limit."""
         self.state, self._clear = INCONSISTENT, 0.0
 
 

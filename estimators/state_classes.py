@@ -9,6 +9,7 @@ from ..plant.sensors import DelayLine, SensorErrors
 from ..plant.suspension_forces import AirSpring, BumpStops, PiecewiseDamper
 from ..plant.vehicle import Vehicle
 from .anchored_road import AnchoredRoad, Blend
+from .bias_step import BiasStep
 from .airspring_observers import (EKF, UKF, DualObserver, DualObserverFilter, FilterpyUKF, NonlinearModel,
                                   NonlinearRoadFilter, UKFRoadFilter, _FilterpyEKF)
 from .imm import IMM, MassIMM, MovingMassIMM
@@ -27,7 +28,7 @@ from .tuning import Tuning
 from .vb_akf import VBAKF, VBRoadFilter
 
 STATE_CLASSES: tuple[type, ...] = (
-    SuspensionEstimator, EstimatorConfig, Tuning, KFRoad, AnchoredRoad, Blend, LinearKF, MMEKF, DiscreteModel,
+    SuspensionEstimator, EstimatorConfig, Tuning, KFRoad, AnchoredRoad, Blend, BiasStep, LinearKF, MMEKF, DiscreteModel,
     ModelNoise, RoadModel, MassEstimator, ForgettingRLS, StateVariableFilter, RoadClassifier, ResponseClassifier,
     IMM, MassIMM, MovingMassIMM, IMMRoad, MovingIMMRoad, VBAKF, VBRoadFilter, NonlinearModel, EKF, UKF,
     FilterpyUKF, _FilterpyEKF, DualObserver, NonlinearRoadFilter, UKFRoadFilter, DualObserverFilter,

@@ -112,9 +112,9 @@ def test_a_body_bias_beyond_the_range_is_flagged_from_the_start_and_covered():
 
 def test_a_body_bias_stepping_mid_run_is_flagged():
     """A body-accelerometer bias stepping by 1 m/s2 (10x the range) mid-run: the force-error filter
-    reads it as a force and the anchor is kept (anchored_road.KEEP_RATIO); the bias its force
-    states take up passes KEPT_BIAS_LIMIT and flags it 0.4 s after the step (seeds 1-3); from then
-    on +-2 std covers the error. Before the anchor was kept: flagged 2 s after the step by the
+    reads it as a force and the anchor is kept (bias_step.py); the bias its force states take up
+    passes bias_step.BIAS_LIMIT and flags it 0.4 s after the step (seeds 1-3); from then on +-2 std
+    covers the error. Before the anchor was kept: flagged 2 s after the step by the
     wheel's innovation mean, the profile decimetres off."""
     t, s, status, err, std = run(SensorErrors(), 16.0, fault=_body_bias_step)
     assert not np.any(status[t < ONSET] == STATUS_SENSOR)
@@ -130,8 +130,8 @@ def test_a_body_bias_stepping_mid_run_is_flagged():
 def test_a_body_bias_or_deflection_zero_stepping_mid_run_is_absorbed_and_covered(seed, channel, size):
     """A body-accelerometer bias or a deflection zero stepping mid-run by a size the filter absorbs
     from the start, or twice that. The anchor's innovations are alike for both; the force-error
-    filter's deflection innovations tell them apart (anchored_road.KEEP_RATIO): after a body step
-    the anchor is kept, after a deflection step it is restarted and dropped. Restarting it after a
+    filter's deflection innovations tell them apart (bias_step.py): after a body step the anchor
+    is kept, after a deflection step it is restarted and dropped. Restarting it after a
     body step left the profile 40 / 79 mm rms off (0.1 / 0.2 m/s2) with +-2 std covering 5-10 %;
     seeds 1-6 now: 2.1-4.4 mm, covered on 99-100 %; the deflection step 1.1-1.7 mm, 97-100 %."""
     def step(t, meas):
@@ -164,7 +164,7 @@ def test_a_deflection_offset_does_not_show_in_the_default_filters_innovations():
 @pytest.mark.parametrize("fault", [_dead_deflection, _body_bias_step])
 def test_through_the_fmu(dist, fault):
     """The FMU reports status 3 after a sensor dies, or a body bias steps beyond the range (the
-    anchor kept, anchored_road.KEEP_RATIO), with the core's profile to the bit."""
+    anchor kept, bias_step.py), with the core's profile to the bit."""
     t, s, meas, zr, v = drive(1, 11.0)
     fault(t, meas)
     core = estimate(meas, v)
@@ -180,3 +180,35 @@ def test_through_the_fmu(dist, fault):
     assert np.array_equal(np.array(status), core["status"])
     assert np.array_equal(np.array(road), core["road_height_est"])
     assert status[-1] == STATUS_SENSOR
+
+
+def test_a_saved_state_with_the_anchor_kept_replays_in_a_second_instance(dist):
+    """The FMU state holds the kept anchor's judge (bias_step.BiasStep) and the gap's profile: a
+    state saved 1 s after a 1 m/s2 body step, restored into a second instance, replays the profile,
+    its std and the status to the bit."""
+    t, s, meas, zr, v = drive(1, 10.0)
+    _body_bias_step(t, meas)
+    k_save = int(round((ONSET + 1.0) / H))
+
+    def advance(d, k0, k1):
+        rows = []
+        for k in range(k0, k1):
+            d.step(H, acc_sprung=meas[k, 0], acc_unsprung=meas[k, 1], susp_deflection=meas[k, 2],
+                   vehicle_speed=v[k])
+            rows.append([d.get("road_height_est"), d.get("road_height_std"), d.get("status")])
+        return np.array(rows)
+
+    d = Driven(dist / "SuspensionEstimator.fmu")
+    other = Driven(dist / "SuspensionEstimator.fmu", name="other")
+    try:
+        advance(d, 0, k_save)
+        blob = d.fmu.serializeFMUstate(d.fmu.getFMUstate())
+        t_save = d.t
+        first = advance(d, k_save, len(t))
+        assert first[0, 2] == STATUS_SENSOR  # kept and flagged when saved
+        other.fmu.setFMUstate(other.fmu.deSerializeFMUstate(blob))
+        other.t = t_save
+        assert np.array_equal(advance(other, k_save, len(t)), first)
+    finally:
+        d.close()
+        other.close()
