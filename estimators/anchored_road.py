@@ -44,11 +44,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.signal import butter
 
+from .bias_step import BiasStep
 from .kalman import LinearKF
 from .kf_road import KFRoad, _apply
 from .mass import MassEstimator
 from .model import IVR, IVS, IVU, IZR, IZS, IZU, N_STATES, DiscreteModel, ModelNoise
-from .bias_step import BiasStep
 from .road_profile import Profiler
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -289,9 +289,11 @@ class AnchoredRoad(KFRoad):
             _apply(self._start_kf, z, rows)
         if rows is None and not replay:
             kf, an, n = self.kf, self.anchor, self.n_states
-            self.bias_step.update(float(kf.y[ZD]) / math.sqrt(float(kf.S[ZD, ZD])),
-                                  float(an.y[ZD]) / math.sqrt(float(an.S[ZD, ZD])),
-                                  float(sum(kf.x[n - self.force_states:n])), self._h, self.time, self.m_model)
+            x = kf.x
+            self.bias_step.update(kf.y.item(ZD) / math.sqrt(kf.S.item(ZD, ZD)),
+                                  an.y.item(ZD) / math.sqrt(an.S.item(ZD, ZD)),
+                                  sum(x.item(i) for i in range(n - self.force_states, n)),
+                                  self._h, self.time, self.m_model)
             if self.mode == KEPT and self.bias_step.beyond_range and self.check is not None:
                 self.check.flag()  # a body bias beyond the range: status 3
         self._after_update(rows is not None)
@@ -364,7 +366,8 @@ class AnchoredRoad(KFRoad):
                         self._distrust_anchor()
                         self.start = START_REFILTER
                 return
-            if self.mode == KEPT if replay else self._keep_anchor():
+            # a re-filter replays the decisions taken: a kept anchor stays kept, a restart restarts
+            if (self.mode == KEPT) if replay else self._keep_anchor():
                 return
             # the anchor disagrees with the force-error filter beyond what the latter's own
             # error explains: its linear spring and damper are wrong at low frequency (a

@@ -137,7 +137,6 @@ class InnovationCheck:
                 self.state = CONSISTENT
         return self.state
 
-
     def flag(self) -> None:
         """A sensor error seen otherwise (a body-accelerometer bias beyond the range taken up,
         bias_step.BIAS_LIMIT): INCONSISTENT, cleared as after a ratio above the limit."""

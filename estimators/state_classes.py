@@ -9,9 +9,9 @@ from ..plant.sensors import DelayLine, SensorErrors
 from ..plant.suspension_forces import AirSpring, BumpStops, PiecewiseDamper
 from ..plant.vehicle import Vehicle
 from .anchored_road import AnchoredRoad, Blend
-from .bias_step import BiasStep
 from .airspring_observers import (EKF, UKF, DualObserver, DualObserverFilter, FilterpyUKF, NonlinearModel,
                                   NonlinearRoadFilter, UKFRoadFilter, _FilterpyEKF)
+from .bias_step import BiasStep
 from .imm import IMM, MassIMM, MovingMassIMM
 from .imm_filter import IMMRoad, MovingIMMRoad
 from .kf_road import KFRoad
